@@ -1,0 +1,1 @@
+//! Attitude from known directions.

@@ -1,0 +1,1 @@
+//! WGS84 geodetic ↔ ECEF ↔ local East-North-Up frames.

@@ -1,0 +1,101 @@
+//! Shared geometric types and helpers: poses, rays, solution lists and unit vectors.
+//!
+//! # Conventions
+//! A [`Pose`] is `world_from_rig`: `point_in_world = pose * point_in_rig`, and its
+//! translation is the rig origin expressed in the world frame. The world frame is a local
+//! Cartesian frame in metres (usually ENU at an origin, see [`crate::geo::LocalFrame`]).
+
+use arrayvec::ArrayVec;
+use nalgebra::{IsometryMatrix3, Point3, Vector3};
+
+/// Pose of the rig in a world frame, `world_from_rig` (rotation matrix + rig origin in world).
+pub type Pose = IsometryMatrix3<f64>;
+
+/// The most solutions a minimal three-point pose problem can have.
+pub const MAX_P3P_SOLUTIONS: usize = 4;
+
+/// Every solution of a minimal pose solver; an empty list means a degenerate sample.
+pub type PoseSolutions = ArrayVec<Pose, MAX_P3P_SOLUTIONS>;
+
+/// A ray in some frame: an origin and a unit direction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    /// Where the ray starts (metres).
+    pub origin: Vector3<f64>,
+    /// Unit direction of the ray.
+    pub direction: Vector3<f64>,
+}
+
+impl Ray {
+    /// A ray from an origin and a direction of any finite, non-zero length.
+    ///
+    /// Returns `None` when the direction is zero or either vector is not finite.
+    pub fn try_new(origin: Vector3<f64>, direction: Vector3<f64>) -> Option<Self> {
+        if !is_finite(&origin) {
+            return None;
+        }
+        Some(Self {
+            origin,
+            direction: try_unit(&direction)?,
+        })
+    }
+
+    /// The point at distance `t` (metres) along the ray.
+    pub fn at(&self, t: f64) -> Vector3<f64> {
+        self.origin + self.direction * t
+    }
+}
+
+/// Smallest vector norm accepted as a direction (anything shorter is treated as zero).
+pub const MIN_DIRECTION_NORM: f64 = 1e-300;
+
+/// True when all three components are finite.
+#[inline]
+pub fn is_finite(v: &Vector3<f64>) -> bool {
+    v.x.is_finite() && v.y.is_finite() && v.z.is_finite()
+}
+
+/// The unit vector along `v`, or `None` when `v` is zero, too short or not finite.
+///
+/// # Example
+/// ```
+/// use nalgebra::Vector3;
+/// let u = vgps::geometry::try_unit(&Vector3::new(3.0, 0.0, 4.0)).unwrap();
+/// assert!((u - Vector3::new(0.6, 0.0, 0.8)).norm() < 1e-15);
+/// assert!(vgps::geometry::try_unit(&Vector3::zeros()).is_none());
+/// ```
+#[inline]
+pub fn try_unit(v: &Vector3<f64>) -> Option<Vector3<f64>> {
+    let n = v.norm();
+    if n.is_finite() && n > MIN_DIRECTION_NORM {
+        let u = v / n;
+        if is_finite(&u) {
+            return Some(u);
+        }
+    }
+    None
+}
+
+/// Angle between two directions of any non-zero length, in radians, accurate at 0 and π.
+///
+/// Uses `atan2(|a × b|, a · b)`, which keeps full precision for tiny angles where
+/// `acos` of the dot product does not.
+///
+/// # Example
+/// ```
+/// use nalgebra::Vector3;
+/// let a = vgps::geometry::angle_between(&Vector3::x(), &Vector3::new(1.0, 1.0, 0.0));
+/// assert!((a - std::f64::consts::FRAC_PI_4).abs() < 1e-15);
+/// ```
+#[inline]
+pub fn angle_between(a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
+    a.cross(b).norm().atan2(a.dot(b))
+}
+
+/// The unit bearing in the rig frame from a pose to a world point, or `None` if the point
+/// coincides with the rig origin.
+#[inline]
+pub fn bearing_in_rig(world_from_rig: &Pose, point_in_world: &Vector3<f64>) -> Option<Vector3<f64>> {
+    let p = world_from_rig.inverse_transform_point(&Point3::from(*point_in_world));
+    try_unit(&p.coords)
+}

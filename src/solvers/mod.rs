@@ -1,0 +1,1 @@
+//! Pose solvers: one minimal solver per file, with one uniform signature.

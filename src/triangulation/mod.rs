@@ -1,0 +1,1 @@
+//! Landmark positions from rays seen at several poses.
