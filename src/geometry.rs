@@ -95,7 +95,10 @@ pub fn angle_between(a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
 /// The unit bearing in the rig frame from a pose to a world point, or `None` if the point
 /// coincides with the rig origin.
 #[inline]
-pub fn bearing_in_rig(world_from_rig: &Pose, point_in_world: &Vector3<f64>) -> Option<Vector3<f64>> {
+pub fn bearing_in_rig(
+    world_from_rig: &Pose,
+    point_in_world: &Vector3<f64>,
+) -> Option<Vector3<f64>> {
     let p = world_from_rig.inverse_transform_point(&Point3::from(*point_in_world));
     try_unit(&p.coords)
 }
