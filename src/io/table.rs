@@ -1,0 +1,247 @@
+//! A small strict CSV table: header checked against the allowed columns, rows checked for
+//! their field count, typed accessors whose errors name the file, the line and the field.
+
+use super::InputError;
+use csv::StringRecord;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+/// A parsed CSV file: its header and its data rows with their 1-based line numbers.
+pub(crate) struct Table {
+    pub(crate) path: PathBuf,
+    pub(crate) header_line: u64,
+    columns: Vec<String>,
+    rows: Vec<(u64, StringRecord)>,
+}
+
+impl Table {
+    /// Reads a whole CSV source. `allowed` lists every column name the file may have;
+    /// `expected` is the header shown in the error for an empty file.
+    pub(crate) fn read<R: Read>(
+        path: &Path,
+        reader: R,
+        allowed: &[&str],
+        expected: &str,
+    ) -> Result<Self, InputError> {
+        let mut bytes = Vec::new();
+        let mut reader = reader;
+        reader
+            .read_to_end(&mut bytes)
+            .map_err(|source| InputError::Read {
+                path: path.to_path_buf(),
+                source,
+            })?;
+        // Line numbers are counted here from the byte offsets: the csv crate's own line
+        // counter skips comment lines, and its offsets point before skipped blank lines.
+        let line_of = |byte: u64| -> u64 {
+            let mut start = usize::try_from(byte).unwrap_or(usize::MAX).min(bytes.len());
+            while start < bytes.len() {
+                match bytes[start] {
+                    b'\n' | b'\r' => start += 1,
+                    b'#' => {
+                        while start < bytes.len() && bytes[start] != b'\n' {
+                            start += 1;
+                        }
+                    }
+                    _ => break,
+                }
+            }
+            1 + bytes[..start].iter().filter(|&&b| b == b'\n').count() as u64
+        };
+        let mut csv_reader = csv::ReaderBuilder::new()
+            .has_headers(false)
+            .flexible(true)
+            .trim(csv::Trim::All)
+            .comment(Some(b'#'))
+            .from_reader(bytes.as_slice());
+        let mut records = Vec::new();
+        for result in csv_reader.records() {
+            let record = result.map_err(|e| csv_error(path, &e, &line_of))?;
+            let line = record.position().map_or(0, |p| line_of(p.byte()));
+            records.push((line, record));
+        }
+        let mut iter = records.into_iter();
+        let Some((header_line, header)) = iter.next() else {
+            return Err(InputError::field(
+                path,
+                1,
+                "header",
+                format!("the file is empty (expected a header line `{expected}`)"),
+            ));
+        };
+        let mut columns: Vec<String> = Vec::with_capacity(header.len());
+        for (k, name) in header.iter().enumerate() {
+            if name.is_empty() {
+                return Err(InputError::field(
+                    path,
+                    header_line,
+                    format!("column {}", k + 1),
+                    format!("empty column name in the header (expected `{expected}`)"),
+                ));
+            }
+            if !allowed.contains(&name) {
+                return Err(InputError::field(
+                    path,
+                    header_line,
+                    name,
+                    format!(
+                        "unknown column (allowed columns: {}; expected header `{expected}`)",
+                        allowed.join(", ")
+                    ),
+                ));
+            }
+            if columns.iter().any(|c| c == name) {
+                return Err(InputError::field(
+                    path,
+                    header_line,
+                    name,
+                    "column appears twice in the header",
+                ));
+            }
+            columns.push(name.to_string());
+        }
+        Ok(Self {
+            path: path.to_path_buf(),
+            header_line,
+            columns,
+            rows: iter.collect(),
+        })
+    }
+
+    /// True when the header has this column.
+    pub(crate) fn has(&self, column: &str) -> bool {
+        self.columns.iter().any(|c| c == column)
+    }
+
+    /// Errors unless the header has every one of `columns`.
+    pub(crate) fn require(&self, columns: &[&str], expected: &str) -> Result<(), InputError> {
+        for column in columns {
+            if !self.has(column) {
+                return Err(self.header_error(
+                    column,
+                    format!("required column is missing from the header (expected `{expected}`)"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// An error about the header.
+    pub(crate) fn header_error(&self, field: &str, reason: impl Into<String>) -> InputError {
+        InputError::field(&self.path, self.header_line, field, reason)
+    }
+
+    /// The data rows in file order, each checked for its field count.
+    pub(crate) fn rows(&self) -> impl Iterator<Item = Result<Row<'_>, InputError>> {
+        self.rows.iter().map(move |(line, record)| {
+            let (n, m) = (record.len(), self.columns.len());
+            if n < m {
+                return Err(InputError::field(
+                    &self.path,
+                    *line,
+                    &self.columns[n],
+                    format!("missing value: the row has {n} fields, the header has {m}"),
+                ));
+            }
+            if n > m {
+                return Err(InputError::field(
+                    &self.path,
+                    *line,
+                    format!("column {}", m + 1),
+                    format!(
+                        "unexpected extra value `{}`: the row has {n} fields, the header has {m}",
+                        &record[m]
+                    ),
+                ));
+            }
+            Ok(Row {
+                table: self,
+                line: *line,
+                record,
+            })
+        })
+    }
+}
+
+/// One data row of a [`Table`].
+pub(crate) struct Row<'a> {
+    table: &'a Table,
+    pub(crate) line: u64,
+    record: &'a StringRecord,
+}
+
+impl Row<'_> {
+    /// An error about a field of this row.
+    pub(crate) fn error(&self, field: &str, reason: impl Into<String>) -> InputError {
+        InputError::field(&self.table.path, self.line, field, reason)
+    }
+
+    /// The trimmed text of a column, or `None` when the header lacks the column.
+    pub(crate) fn raw(&self, column: &str) -> Option<&str> {
+        let k = self.table.columns.iter().position(|c| c == column)?;
+        self.record.get(k)
+    }
+
+    /// A non-empty text value of an optional column (`None` when absent or empty).
+    pub(crate) fn optional_str(&self, column: &str) -> Option<&str> {
+        self.raw(column).filter(|s| !s.is_empty())
+    }
+
+    /// A non-empty text value of a required column.
+    pub(crate) fn required_str(&self, column: &str) -> Result<&str, InputError> {
+        self.optional_str(column)
+            .ok_or_else(|| self.error(column, "missing value"))
+    }
+
+    /// A finite number of an optional column (`None` when absent or empty).
+    pub(crate) fn optional_f64(&self, column: &str) -> Result<Option<f64>, InputError> {
+        match self.optional_str(column) {
+            None => Ok(None),
+            Some(text) => {
+                let value: f64 = text
+                    .parse()
+                    .map_err(|_| self.error(column, format!("`{text}` is not a number")))?;
+                if !value.is_finite() {
+                    return Err(self.error(column, format!("`{text}` is not a finite number")));
+                }
+                Ok(Some(value))
+            }
+        }
+    }
+
+    /// A finite number of a required column.
+    pub(crate) fn required_f64(&self, column: &str) -> Result<f64, InputError> {
+        self.optional_f64(column)?
+            .ok_or_else(|| self.error(column, "missing value"))
+    }
+}
+
+/// Converts a CSV decoding error (invalid UTF-8, I/O) into an [`InputError`].
+fn csv_error(path: &Path, error: &csv::Error, line_of: &dyn Fn(u64) -> u64) -> InputError {
+    match error.kind() {
+        csv::ErrorKind::Io(e) => InputError::Read {
+            path: path.to_path_buf(),
+            source: std::io::Error::new(e.kind(), e.to_string()),
+        },
+        csv::ErrorKind::Utf8 { pos, err } => InputError::field(
+            path,
+            pos.as_ref().map_or(0, |p| line_of(p.byte())),
+            format!("column {}", err.field() + 1),
+            "the value is not valid UTF-8",
+        ),
+        _ => InputError::field(
+            path,
+            error.position().map_or(0, |p| line_of(p.byte())),
+            "record",
+            error.to_string(),
+        ),
+    }
+}
+
+/// Opens a file for one of the readers, mapping failure to [`InputError::Read`].
+pub(crate) fn open(path: &Path) -> Result<std::fs::File, InputError> {
+    std::fs::File::open(path).map_err(|source| InputError::Read {
+        path: path.to_path_buf(),
+        source,
+    })
+}
