@@ -43,6 +43,7 @@
 
 pub mod attitude;
 pub mod cli;
+pub mod fix;
 pub mod geo;
 pub mod geometry;
 pub mod io;

@@ -1,6 +1,92 @@
 //! The command implementations behind the `vgps` binary.
+//!
+//! The command line is parsed once ([`args::Cli`], clap) and validated into [`Settings`];
+//! each subcommand then runs on those settings, writing its results to `out` and its
+//! diagnostics to `err`. `docs/cli.md` documents the subcommands, the file formats, the
+//! outputs and the exit codes:
+//! - `0`: success (frames or ids without a result are reported in the output, not failures);
+//! - `1`: an output error (e.g. stdout closed);
+//! - `2`: a usage error or an invalid input file (the message names file, line and field).
+
+pub mod args;
+pub mod demo;
+pub mod locate;
+pub mod triangulate;
+
+pub use args::{Cli, LocateSettings, PriorArg, Settings, TriangulateSettings};
+
+use crate::io::InputError;
+use clap::Parser;
+use std::ffi::OsString;
+use std::io::Write;
+
+/// Exit code of a usage error or an invalid input.
+pub const EXIT_INPUT: u8 = 2;
+/// Exit code of an output error.
+pub const EXIT_OUTPUT: u8 = 1;
+
+/// Errors of the commands.
+#[derive(Debug, thiserror::Error)]
+pub enum CliError {
+    /// An input file is invalid (names the file, line and field).
+    #[error(transparent)]
+    Input(#[from] InputError),
+    /// A feature the input asks for does not exist yet.
+    #[error("{0}")]
+    Unsupported(String),
+    /// An internal inconsistency (a bug: please report it).
+    #[error("internal error: {0}")]
+    Internal(String),
+    /// Writing the output failed.
+    #[error("cannot write the output: {0}")]
+    Output(#[from] std::io::Error),
+}
+
+impl CliError {
+    /// The process exit code of this error.
+    pub fn exit_code(&self) -> u8 {
+        match self {
+            Self::Input(_) | Self::Unsupported(_) => EXIT_INPUT,
+            Self::Output(_) | Self::Internal(_) => EXIT_OUTPUT,
+        }
+    }
+}
 
 /// Runs the command line and returns the process exit code.
 pub fn main() -> std::process::ExitCode {
-    std::process::ExitCode::SUCCESS
+    let stdout = std::io::stdout();
+    let stderr = std::io::stderr();
+    let code = run(std::env::args_os(), &mut stdout.lock(), &mut stderr.lock());
+    std::process::ExitCode::from(code)
+}
+
+/// Parses `args` (the first is the program name), runs the command and returns the exit
+/// code; results go to `out`, diagnostics to `err`.
+pub fn run<I, T>(args: I, out: &mut dyn Write, err: &mut dyn Write) -> u8
+where
+    I: IntoIterator<Item = T>,
+    T: Into<OsString> + Clone,
+{
+    let cli = match Cli::try_parse_from(args) {
+        Ok(cli) => cli,
+        Err(e) => {
+            let code = u8::try_from(e.exit_code()).unwrap_or(EXIT_INPUT);
+            let sink: &mut dyn Write = if e.use_stderr() { err } else { out };
+            // Nothing more can be reported if even this write fails.
+            let _ = write!(sink, "{}", e.render());
+            return code;
+        }
+    };
+    let result = Settings::try_from(cli).and_then(|settings| match settings {
+        Settings::Locate(s) => locate::run(&s, out, err),
+        Settings::Triangulate(s) => triangulate::run(&s, out, err),
+        Settings::Demo => demo::run(out),
+    });
+    match result.and_then(|()| out.flush().map_err(CliError::from)) {
+        Ok(()) => 0,
+        Err(e) => {
+            let _ = writeln!(err, "vgps: error: {e}");
+            e.exit_code()
+        }
+    }
 }

@@ -1,0 +1,793 @@
+//! A position and attitude fix from bearings to identified landmarks.
+//!
+//! [`compute_fix`] takes observations with **known correspondences** (each ray is paired with
+//! the landmark it sees) and returns a [`Fix`]: a status, and for status `ok` the pose
+//! `world_from_rig`, its 6×6 covariance and the inlier flags.
+//!
+//! # Method
+//! - **n = 3**: [`crate::solvers::p3p`] gives up to four poses. One solution is used as is;
+//!   with several, a prior (a position and a radius) may pick exactly one; otherwise the
+//!   status is `ambiguous` and the candidates are returned — the fix never guesses.
+//! - **n ≥ 4**: pose hypotheses from P3P on triples (every triple while there are at most
+//!   [`MAX_EXHAUSTIVE_TRIPLES`], otherwise [`FixOptions::random_triples`] random triples from a
+//!   fixed seed, so the result is reproducible), each scored by the number of observations
+//!   whose angular residual is within [`FixOptions::inlier_threshold_sigmas`] standard
+//!   deviations (ties broken by the truncated squared residuals, as in MSAC). The best is
+//!   refined with [`crate::solvers::refine_pose`] on its inliers, the inliers are re-scored
+//!   against the refined pose and the refinement repeated until they settle. A runner-up
+//!   supported by nearly as many observations (see [`AMBIGUITY_FRACTION`]) whose own refined
+//!   pose is statistically distinct from the best ([`DISTINCT_POSE_CHI2`]) makes the fix
+//!   `ambiguous`. (A full RANSAC with adaptive stopping arrives with the matcher.)
+//!
+//! The P3P hypotheses use the ray directions only (a central camera); the refinement and the
+//! covariance use the ray origins as given. For now the origins are zero (one centre).
+//!
+//! # Covariance
+//! The pose is estimated with one angular σ for every observation, but a landmark surveyed
+//! with standard deviation `σ_m` per axis at range `ρ` adds angular noise `σ_m / ρ` per
+//! tangent axis to its bearing (first order: the component of the landmark error across the
+//! line of sight, which is all a bearing sees). The reported covariance is the first-order
+//! covariance of the estimator actually used, the sandwich `H⁻¹ M H⁻¹` with
+//! `H = Σ Jᵢᵀ Jᵢ / σ²`, `M = Σ Jᵢᵀ Jᵢ (σ² + σ_m,ᵢ²/ρᵢ²) / σ⁴`, where `Jᵢ` (2×6) is the
+//! derivative of the tangent-plane bearing residual of inlier `i` with respect to the pose
+//! perturbation `[δp, δθ]` (world frame; the crate's convention). With every `σ_m = 0` it is
+//! `H⁻¹`, the covariance `refine_pose` reports.
+//!
+//! # Example
+//! ```
+//! use nalgebra::Vector3;
+//! use vgps::fix::{FixOptions, FixStatus, compute_fix};
+//! use vgps::geometry::{Pose, Ray, bearing_in_rig};
+//!
+//! let truth = Pose::translation(1.0, 2.0, 0.5);
+//! let landmarks = [
+//!     Vector3::new(30.0, 5.0, 4.0),
+//!     Vector3::new(-10.0, 25.0, 6.0),
+//!     Vector3::new(-20.0, -18.0, 3.0),
+//!     Vector3::new(12.0, -30.0, 9.0),
+//!     Vector3::new(2.0, 3.0, 40.0),
+//! ];
+//! let rays: Vec<Ray> = landmarks
+//!     .iter()
+//!     .map(|p| Ray::try_new(Vector3::zeros(), bearing_in_rig(&truth, p).unwrap()).unwrap())
+//!     .collect();
+//! let options = FixOptions { sigma_rad: 1e-3, ..FixOptions::default() };
+//! let fix = compute_fix(&rays, &landmarks, &[0.0; 5], &options).unwrap();
+//! assert_eq!(fix.status, FixStatus::Ok);
+//! let estimate = fix.estimate.unwrap();
+//! assert!((estimate.world_from_rig.translation.vector - truth.translation.vector).norm() < 1e-6);
+//! assert_eq!(estimate.n_inliers, 5);
+//! ```
+
+use crate::geometry::{Pose, Ray, angle_between, try_unit};
+use crate::solvers::{RefineOptions, RobustLoss, p3p, refine_pose};
+use nalgebra::{Matrix6, Point3, SMatrix, Vector3, Vector6};
+use rand::{RngExt, SeedableRng};
+
+/// Observations needed for a fix: a minimal P3P sample.
+pub const MIN_OBSERVATIONS: usize = 3;
+
+/// Default inlier threshold, in standard deviations of the angular residual: the angle
+/// between two independent per-axis Gaussian errors of σ exceeds 5σ with probability
+/// `exp(-12.5) ≈ 4·10⁻⁶`, yet a gross mismatch is rejected.
+pub const INLIER_THRESHOLD_SIGMAS: f64 = 5.0;
+
+/// Triples are enumerated exhaustively while there are at most this many (n ≤ 12).
+pub const MAX_EXHAUSTIVE_TRIPLES: usize = 220;
+
+/// Default number of random triples when there are more than [`MAX_EXHAUSTIVE_TRIPLES`].
+pub const DEFAULT_RANDOM_TRIPLES: usize = 300;
+
+/// Default seed of the triple sampler (fixed: the same input gives the same fix).
+pub const DEFAULT_SAMPLING_SEED: u64 = 0x7669_7375_616c_6770;
+
+/// A runner-up hypothesis is "close" to the best when its inlier count is at least
+/// `best − ⌊AMBIGUITY_FRACTION × best⌋` (and larger than a minimal sample, which any P3P
+/// solution fits exactly).
+pub const AMBIGUITY_FRACTION: f64 = 0.1;
+
+/// Two refined poses are distinct when the squared Mahalanobis distance between them, under
+/// the sum of their covariances, exceeds this: the 0.999 quantile of χ² with 6 degrees of
+/// freedom.
+pub const DISTINCT_POSE_CHI2: f64 = 22.458;
+
+/// Hypotheses within this squared Mahalanobis distance of the refined best pose (under its
+/// covariance) are taken to be the same pose without refining them: a loose gate (σ × 100)
+/// that only saves work, since a hypothesis outside it is refined before being compared.
+pub const SAME_POSE_GATE_CHI2: f64 = 1.0e4;
+
+/// At most this many runner-up hypotheses are refined to test for ambiguity.
+pub const MAX_AMBIGUITY_REFINEMENTS: usize = 8;
+
+/// At most this many refine / re-score passes on the best hypothesis.
+pub const MAX_INLIER_PASSES: usize = 4;
+
+/// The information matrix, scaled to unit diagonal, must have a reciprocal condition number
+/// above this; otherwise the geometry does not determine the pose (`degenerate_geometry`).
+pub const MIN_RECIPROCAL_CONDITION: f64 = 1e-12;
+
+/// A pose prior: the rig is within `radius_m` of `position_in_world`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Prior {
+    /// Prior position of the rig in the world frame, metres.
+    pub position_in_world: Vector3<f64>,
+    /// Radius around the prior position, metres (positive).
+    pub radius_m: f64,
+}
+
+/// Options of [`compute_fix`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FixOptions {
+    /// Standard deviation of the bearing noise per tangent axis, radians (positive).
+    pub sigma_rad: f64,
+    /// Inlier threshold on the angular residual, in (effective) standard deviations.
+    pub inlier_threshold_sigmas: f64,
+    /// Optional prior on the position; solutions outside its radius are discarded.
+    pub prior: Option<Prior>,
+    /// Number of random triples when the triples are too many to enumerate.
+    pub random_triples: usize,
+    /// Seed of the random triple sampler.
+    pub seed: u64,
+}
+
+impl Default for FixOptions {
+    fn default() -> Self {
+        Self {
+            sigma_rad: 0.1_f64.to_radians(),
+            inlier_threshold_sigmas: INLIER_THRESHOLD_SIGMAS,
+            prior: None,
+            random_triples: DEFAULT_RANDOM_TRIPLES,
+            seed: DEFAULT_SAMPLING_SEED,
+        }
+    }
+}
+
+/// Why there is, or is not, a fix. [`FixStatus::as_str`] gives the stable string form.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FixStatus {
+    /// A fix: pose and covariance are given.
+    Ok,
+    /// Fewer than [`MIN_OBSERVATIONS`] observations.
+    TooFewObservations,
+    /// Several poses explain the observations equally well; the candidates are given.
+    Ambiguous,
+    /// The geometry does not determine the pose (e.g. collinear landmarks, a singular
+    /// information matrix, no P3P solution on any triple).
+    DegenerateGeometry,
+    /// Hypotheses exist but none is acceptable (outside the prior, or no agreement beyond a
+    /// minimal sample, or the refinement failed).
+    NoSolution,
+}
+
+impl FixStatus {
+    /// The stable string form: `ok`, `too_few_observations`, `ambiguous`,
+    /// `degenerate_geometry`, `no_solution`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Ok => "ok",
+            Self::TooFewObservations => "too_few_observations",
+            Self::Ambiguous => "ambiguous",
+            Self::DegenerateGeometry => "degenerate_geometry",
+            Self::NoSolution => "no_solution",
+        }
+    }
+}
+
+impl std::fmt::Display for FixStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// The pose of a successful fix.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FixEstimate {
+    /// The rig pose `world_from_rig`.
+    pub world_from_rig: Pose,
+    /// Covariance of `[δp (m, world), δθ (rad, world)]`, inflated for the landmark survey
+    /// noise (see the module docs).
+    pub covariance: Matrix6<f64>,
+    /// Number of inliers used.
+    pub n_inliers: usize,
+    /// Root mean square angle between the observed and predicted bearings of the inliers,
+    /// radians.
+    pub rms_residual_rad: f64,
+    /// Iterations of the last refinement.
+    pub iterations: usize,
+    /// Whether the last refinement reported convergence.
+    pub converged: bool,
+}
+
+/// The result of [`compute_fix`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Fix {
+    /// Why there is, or is not, a fix.
+    pub status: FixStatus,
+    /// A human-readable explanation (e.g. "3 P3P solutions and no prior"); empty for `ok`.
+    pub message: String,
+    /// The estimate, present exactly when `status` is [`FixStatus::Ok`].
+    pub estimate: Option<FixEstimate>,
+    /// Per observation (input order): whether it is an inlier of the estimate (all false
+    /// without an estimate).
+    pub inliers: Vec<bool>,
+    /// The distinct candidate poses when `status` is [`FixStatus::Ambiguous`].
+    pub candidates: Vec<Pose>,
+}
+
+impl Fix {
+    fn failed(status: FixStatus, n: usize, message: impl Into<String>) -> Self {
+        Self {
+            status,
+            message: message.into(),
+            estimate: None,
+            inliers: vec![false; n],
+            candidates: Vec::new(),
+        }
+    }
+}
+
+/// Errors of [`compute_fix`]: inputs that are not a valid problem (as opposed to
+/// observations that do not give a fix, which are a [`FixStatus`]).
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum FixError {
+    /// The input slices differ in length.
+    #[error(
+        "{rays} rays, {points} landmark points and {sigmas} landmark sigmas: the lengths must match"
+    )]
+    LengthMismatch {
+        /// Number of rays.
+        rays: usize,
+        /// Number of landmark points.
+        points: usize,
+        /// Number of landmark sigmas.
+        sigmas: usize,
+    },
+    /// A parameter is out of its domain.
+    #[error("invalid {name}: {value} (must be finite and {requirement})")]
+    InvalidParameter {
+        /// The parameter.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// What it must be.
+        requirement: &'static str,
+    },
+    /// A landmark point or a ray origin is not finite.
+    #[error("observation {index}: landmark point or ray origin is not finite")]
+    NonFinite {
+        /// Index of the observation.
+        index: usize,
+    },
+}
+
+/// Computes a fix from rays in the rig frame paired with landmark points in the world frame.
+///
+/// `rays_in_rig[i]` sees `points_in_world[i]`, surveyed with standard deviation
+/// `landmark_sigma_m[i]` per axis (0 for exact).
+///
+/// # Units
+/// Metres for points, origins and sigmas; radians in `options.sigma_rad`.
+///
+/// # Errors
+/// [`FixError`] for mismatched lengths, a non-finite point or origin, a negative or
+/// non-finite `landmark_sigma_m`, a non-positive `sigma_rad`, `inlier_threshold_sigmas` or
+/// prior radius. Observations that do not give a fix return `Ok` with a non-`ok` status.
+pub fn compute_fix(
+    rays_in_rig: &[Ray],
+    points_in_world: &[Vector3<f64>],
+    landmark_sigma_m: &[f64],
+    options: &FixOptions,
+) -> Result<Fix, FixError> {
+    validate(rays_in_rig, points_in_world, landmark_sigma_m, options)?;
+    let problem = Problem {
+        rays: rays_in_rig,
+        points: points_in_world,
+        sigma_m: landmark_sigma_m,
+        options,
+    };
+    let n = rays_in_rig.len();
+    if n < MIN_OBSERVATIONS {
+        return Ok(Fix::failed(
+            FixStatus::TooFewObservations,
+            n,
+            format!("{n} observations; a fix needs at least {MIN_OBSERVATIONS}"),
+        ));
+    }
+    if n == MIN_OBSERVATIONS {
+        Ok(problem.minimal())
+    } else {
+        Ok(problem.overdetermined())
+    }
+}
+
+fn validate(
+    rays: &[Ray],
+    points: &[Vector3<f64>],
+    sigma_m: &[f64],
+    options: &FixOptions,
+) -> Result<(), FixError> {
+    if rays.len() != points.len() || rays.len() != sigma_m.len() {
+        return Err(FixError::LengthMismatch {
+            rays: rays.len(),
+            points: points.len(),
+            sigmas: sigma_m.len(),
+        });
+    }
+    let positive = |name, value: f64| {
+        if value.is_finite() && value > 0.0 {
+            Ok(())
+        } else {
+            Err(FixError::InvalidParameter {
+                name,
+                value,
+                requirement: "positive",
+            })
+        }
+    };
+    positive("sigma_rad", options.sigma_rad)?;
+    positive("inlier_threshold_sigmas", options.inlier_threshold_sigmas)?;
+    if let Some(prior) = &options.prior {
+        positive("prior radius_m", prior.radius_m)?;
+        if !crate::geometry::is_finite(&prior.position_in_world) {
+            return Err(FixError::InvalidParameter {
+                name: "prior position",
+                value: f64::NAN,
+                requirement: "finite",
+            });
+        }
+    }
+    for (index, ((ray, point), s)) in rays.iter().zip(points).zip(sigma_m).enumerate() {
+        if !(crate::geometry::is_finite(point)
+            && crate::geometry::is_finite(&ray.origin)
+            && crate::geometry::is_finite(&ray.direction))
+        {
+            return Err(FixError::NonFinite { index });
+        }
+        if !(s.is_finite() && *s >= 0.0) {
+            return Err(FixError::InvalidParameter {
+                name: "landmark_sigma_m",
+                value: *s,
+                requirement: "non-negative",
+            });
+        }
+    }
+    Ok(())
+}
+
+/// One scored pose hypothesis.
+struct Hypothesis {
+    pose: Pose,
+    inliers: Vec<bool>,
+    count: usize,
+    cost: f64,
+}
+
+/// A refined pose with its inliers and covariance.
+struct Refined {
+    pose: Pose,
+    inliers: Vec<bool>,
+    count: usize,
+    covariance: Matrix6<f64>,
+    rms_residual_rad: f64,
+    iterations: usize,
+    converged: bool,
+}
+
+struct Problem<'a> {
+    rays: &'a [Ray],
+    points: &'a [Vector3<f64>],
+    sigma_m: &'a [f64],
+    options: &'a FixOptions,
+}
+
+impl Problem<'_> {
+    fn n(&self) -> usize {
+        self.rays.len()
+    }
+
+    /// Where the ray `i` starts in the world frame.
+    fn centre(&self, pose: &Pose, i: usize) -> Vector3<f64> {
+        (pose * Point3::from(self.rays[i].origin)).coords
+    }
+
+    /// Range from the ray origin `i` to its landmark, metres.
+    fn range(&self, pose: &Pose, i: usize) -> f64 {
+        (self.points[i] - self.centre(pose, i)).norm()
+    }
+
+    /// Angle between the observed and the predicted bearing of observation `i`, radians.
+    fn residual(&self, pose: &Pose, i: usize) -> f64 {
+        let observed = pose.rotation * self.rays[i].direction;
+        angle_between(&observed, &(self.points[i] - self.centre(pose, i)))
+    }
+
+    /// Effective angular standard deviation of observation `i`: the bearing noise and the
+    /// landmark survey noise seen across the line of sight.
+    fn effective_sigma(&self, pose: &Pose, i: usize) -> f64 {
+        let sigma = self.options.sigma_rad;
+        let range = self.range(pose, i);
+        if self.sigma_m[i] == 0.0 || range <= 0.0 {
+            return sigma;
+        }
+        let s = self.sigma_m[i] / range;
+        (sigma * sigma + s * s).sqrt()
+    }
+
+    fn within_prior(&self, pose: &Pose) -> bool {
+        self.options.prior.is_none_or(|prior| {
+            (pose.translation.vector - prior.position_in_world).norm() <= prior.radius_m
+        })
+    }
+
+    /// Scores a pose: inlier flags, their count and the truncated squared cost (MSAC).
+    fn score(&self, pose: &Pose) -> Hypothesis {
+        let k = self.options.inlier_threshold_sigmas;
+        let mut inliers = vec![false; self.n()];
+        let mut cost = 0.0;
+        for (i, flag) in inliers.iter_mut().enumerate() {
+            let r = self.residual(pose, i) / self.effective_sigma(pose, i);
+            if r <= k {
+                *flag = true;
+                cost += r * r;
+            } else {
+                cost += k * k;
+            }
+        }
+        Hypothesis {
+            pose: *pose,
+            count: inliers.iter().filter(|&&b| b).count(),
+            inliers,
+            cost,
+        }
+    }
+
+    /// P3P on three observations (directions only).
+    fn p3p(&self, triple: [usize; 3]) -> crate::geometry::PoseSolutions {
+        let bearings = triple.map(|i| self.rays[i].direction);
+        let points = triple.map(|i| self.points[i]);
+        p3p(&bearings, &points)
+    }
+
+    /// Exactly three observations.
+    fn minimal(&self) -> Fix {
+        let n = self.n();
+        let solutions = self.p3p([0, 1, 2]);
+        if solutions.is_empty() {
+            return Fix::failed(
+                FixStatus::DegenerateGeometry,
+                n,
+                "P3P has no solution for these three landmarks and bearings",
+            );
+        }
+        let kept: Vec<Pose> = solutions
+            .iter()
+            .filter(|p| self.within_prior(p))
+            .copied()
+            .collect();
+        match (kept.len(), self.options.prior.is_some()) {
+            (1, _) => self.finish_minimal(&kept[0]),
+            (0, _) => Fix::failed(
+                FixStatus::NoSolution,
+                n,
+                format!(
+                    "none of the {} P3P solutions lies within the prior radius",
+                    solutions.len()
+                ),
+            ),
+            (k, has_prior) => Fix {
+                status: FixStatus::Ambiguous,
+                message: format!(
+                    "{k} P3P solutions{}; three landmarks do not determine the pose",
+                    if has_prior {
+                        " within the prior radius"
+                    } else {
+                        " and no prior to choose"
+                    }
+                ),
+                estimate: None,
+                inliers: vec![false; n],
+                candidates: kept,
+            },
+        }
+    }
+
+    /// Four or more observations: hypothesise, score, refine, check for ambiguity.
+    fn overdetermined(&self) -> Fix {
+        let n = self.n();
+        let mut any_solution = false;
+        let mut hypotheses: Vec<Hypothesis> = Vec::new();
+        for triple in self.triples() {
+            for pose in self.p3p(triple) {
+                any_solution = true;
+                if self.within_prior(&pose) {
+                    hypotheses.push(self.score(&pose));
+                }
+            }
+        }
+        if hypotheses.is_empty() {
+            return if any_solution {
+                Fix::failed(
+                    FixStatus::NoSolution,
+                    n,
+                    "no P3P solution lies within the prior radius",
+                )
+            } else {
+                Fix::failed(
+                    FixStatus::DegenerateGeometry,
+                    n,
+                    "P3P has no solution on any triple of observations",
+                )
+            };
+        }
+        hypotheses.sort_by(|a, b| b.count.cmp(&a.count).then(a.cost.total_cmp(&b.cost)));
+        let best_count = hypotheses[0].count;
+        if best_count <= MIN_OBSERVATIONS {
+            return Fix::failed(
+                FixStatus::NoSolution,
+                n,
+                format!("no pose agrees with more than {MIN_OBSERVATIONS} of the {n} observations"),
+            );
+        }
+        let best = match self.refine(&hypotheses[0]) {
+            Ok(best) => best,
+            Err((status, message)) => return Fix::failed(status, n, message),
+        };
+        if !self.within_prior(&best.pose) {
+            return Fix::failed(
+                FixStatus::NoSolution,
+                n,
+                "the refined pose lies outside the prior radius",
+            );
+        }
+        let margin = (AMBIGUITY_FRACTION * best.count as f64).floor() as usize;
+        let close = best.count.saturating_sub(margin).max(MIN_OBSERVATIONS + 1);
+        let mut candidates = vec![best.pose];
+        let mut refinements = 0;
+        for h in hypotheses.iter().skip(1) {
+            if h.count < close || refinements >= MAX_AMBIGUITY_REFINEMENTS {
+                break;
+            }
+            if candidates.iter().any(|c| {
+                mahalanobis2(&h.pose, c, &best.covariance).is_some_and(|d| d <= SAME_POSE_GATE_CHI2)
+            }) {
+                continue;
+            }
+            refinements += 1;
+            let Ok(other) = self.refine(h) else { continue };
+            if other.count < close {
+                continue;
+            }
+            let sum = best.covariance + other.covariance;
+            let distinct = candidates
+                .iter()
+                .all(|c| mahalanobis2(&other.pose, c, &sum).is_none_or(|d| d > DISTINCT_POSE_CHI2));
+            if distinct {
+                candidates.push(other.pose);
+            }
+        }
+        if candidates.len() > 1 {
+            return Fix {
+                status: FixStatus::Ambiguous,
+                message: format!(
+                    "{} distinct poses each agree with about {} of the {n} observations",
+                    candidates.len(),
+                    best.count
+                ),
+                estimate: None,
+                inliers: vec![false; n],
+                candidates,
+            };
+        }
+        Fix {
+            status: FixStatus::Ok,
+            message: String::new(),
+            inliers: best.inliers.clone(),
+            estimate: Some(FixEstimate {
+                world_from_rig: best.pose,
+                covariance: best.covariance,
+                n_inliers: best.count,
+                rms_residual_rad: best.rms_residual_rad,
+                iterations: best.iterations,
+                converged: best.converged,
+            }),
+            candidates: Vec::new(),
+        }
+    }
+
+    /// The triples to try: all of them, or a reproducible random set.
+    fn triples(&self) -> Vec<[usize; 3]> {
+        let n = self.n();
+        let total = n * (n - 1) * (n - 2) / 6;
+        if total <= MAX_EXHAUSTIVE_TRIPLES {
+            let mut out = Vec::with_capacity(total);
+            for i in 0..n {
+                for j in i + 1..n {
+                    for k in j + 1..n {
+                        out.push([i, j, k]);
+                    }
+                }
+            }
+            return out;
+        }
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(self.options.seed);
+        (0..self.options.random_triples)
+            .map(|_| {
+                let i = rng.random_range(0..n);
+                let mut j = rng.random_range(0..n - 1);
+                if j >= i {
+                    j += 1;
+                }
+                let mut k = rng.random_range(0..n - 2);
+                for m in [i.min(j), i.max(j)] {
+                    if k >= m {
+                        k += 1;
+                    }
+                }
+                [i, j, k]
+            })
+            .collect()
+    }
+
+    /// Refines a hypothesis on its inliers, re-scores, repeats until the inliers settle.
+    fn refine(&self, h: &Hypothesis) -> Result<Refined, (FixStatus, String)> {
+        let n = self.n();
+        let mut pose = h.pose;
+        let mut inliers = h.inliers.clone();
+        let refine_options = RefineOptions {
+            sigma_rad: self.options.sigma_rad,
+            loss: RobustLoss::None,
+            ..RefineOptions::default()
+        };
+        let mut last = None;
+        for _ in 0..MAX_INLIER_PASSES {
+            let idx: Vec<usize> = (0..n).filter(|&i| inliers[i]).collect();
+            if idx.len() < MIN_OBSERVATIONS {
+                break;
+            }
+            let rays: Vec<Ray> = idx.iter().map(|&i| self.rays[i]).collect();
+            let points: Vec<Vector3<f64>> = idx.iter().map(|&i| self.points[i]).collect();
+            let refined = refine_pose(&pose, &rays, &points, &refine_options).map_err(|e| {
+                (
+                    FixStatus::NoSolution,
+                    format!("the pose refinement failed: {e}"),
+                )
+            })?;
+            pose = refined.world_from_rig;
+            last = Some((refined.iterations, refined.converged));
+            let rescored = self.score(&pose);
+            let settled = rescored.inliers == inliers;
+            inliers = rescored.inliers;
+            if settled {
+                break;
+            }
+        }
+        let (iterations, converged) = last.unwrap_or((0, false));
+        let idx: Vec<usize> = (0..n).filter(|&i| inliers[i]).collect();
+        if idx.len() < MIN_OBSERVATIONS {
+            return Err((
+                FixStatus::NoSolution,
+                "too few observations agree with the refined pose".to_string(),
+            ));
+        }
+        let covariance = self.covariance(&pose, &idx).ok_or_else(|| {
+            (
+                FixStatus::DegenerateGeometry,
+                "the observations do not determine the pose (singular information matrix)"
+                    .to_string(),
+            )
+        })?;
+        let sum_sq: f64 = idx.iter().map(|&i| self.residual(&pose, i).powi(2)).sum();
+        Ok(Refined {
+            pose,
+            count: idx.len(),
+            inliers,
+            covariance,
+            rms_residual_rad: (sum_sq / idx.len() as f64).sqrt(),
+            iterations,
+            converged,
+        })
+    }
+
+    /// The sandwich covariance of the module docs over the observations `idx`.
+    fn covariance(&self, pose: &Pose, idx: &[usize]) -> Option<Matrix6<f64>> {
+        let sigma2 = self.options.sigma_rad.powi(2);
+        let mut h = Matrix6::zeros();
+        let mut m = Matrix6::zeros();
+        for &i in idx {
+            let centre = self.centre(pose, i);
+            let to_point = self.points[i] - centre;
+            let range = to_point.norm();
+            let w = try_unit(&to_point)?;
+            let b = pose.rotation * self.rays[i].direction;
+            let o = pose.rotation * self.rays[i].origin;
+            let (t1, t2) = tangent_pair(&w)?;
+            let mut j = SMatrix::<f64, 2, 6>::zeros();
+            for (row, t) in [t1, t2].iter().enumerate() {
+                let dp = t / range;
+                let dtheta = b.cross(t) + o.cross(t) / range;
+                j.fixed_view_mut::<1, 3>(row, 0).copy_from(&dp.transpose());
+                j.fixed_view_mut::<1, 3>(row, 3)
+                    .copy_from(&dtheta.transpose());
+            }
+            let jtj = j.transpose() * j;
+            let s = self.sigma_m[i] / range;
+            h += jtj / sigma2;
+            m += jtj * ((sigma2 + s * s) / (sigma2 * sigma2));
+        }
+        let h_inv = checked_inverse(&h)?;
+        let cov = h_inv * m * h_inv;
+        let cov = (cov + cov.transpose()) * 0.5;
+        cov.iter().all(|v| v.is_finite()).then_some(cov)
+    }
+
+    /// The `ok` fix of a unique minimal (n = 3) solution. P3P fits three bearings exactly,
+    /// so there is nothing to refine; the covariance is computed at the solution.
+    fn finish_minimal(&self, pose: &Pose) -> Fix {
+        let n = self.n();
+        let idx: Vec<usize> = (0..n).collect();
+        let Some(covariance) = self.covariance(pose, &idx) else {
+            return Fix::failed(
+                FixStatus::DegenerateGeometry,
+                n,
+                "the three observations do not determine the pose (singular information matrix)",
+            );
+        };
+        let sum_sq: f64 = idx.iter().map(|&i| self.residual(pose, i).powi(2)).sum();
+        Fix {
+            status: FixStatus::Ok,
+            message: String::new(),
+            inliers: vec![true; n],
+            estimate: Some(FixEstimate {
+                world_from_rig: *pose,
+                covariance,
+                n_inliers: n,
+                rms_residual_rad: (sum_sq / n as f64).sqrt(),
+                iterations: 0,
+                converged: true,
+            }),
+            candidates: Vec::new(),
+        }
+    }
+}
+
+/// Two unit vectors completing the unit vector `w` to an orthonormal basis.
+fn tangent_pair(w: &Vector3<f64>) -> Option<(Vector3<f64>, Vector3<f64>)> {
+    let helper = if w.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let t1 = try_unit(&helper.cross(w))?;
+    Some((t1, w.cross(&t1)))
+}
+
+/// Inverse of a symmetric positive semi-definite 6×6 matrix, or `None` when it is singular
+/// or ill-conditioned beyond [`MIN_RECIPROCAL_CONDITION`] (after scaling to unit diagonal,
+/// which makes the test independent of the units of position and angle).
+fn checked_inverse(h: &Matrix6<f64>) -> Option<Matrix6<f64>> {
+    let d = Vector6::from_fn(|i, _| h[(i, i)]);
+    if d.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+        return None;
+    }
+    let s = d.map(|v| 1.0 / v.sqrt());
+    let scaled = Matrix6::from_fn(|i, j| h[(i, j)] * s[i] * s[j]);
+    let eig = scaled.symmetric_eigenvalues();
+    let (min, max) = eig.iter().fold((f64::INFINITY, 0.0_f64), |(lo, hi), &v| {
+        (lo.min(v), hi.max(v))
+    });
+    if min.is_nan() || min <= MIN_RECIPROCAL_CONDITION * max {
+        return None;
+    }
+    let inv = scaled.cholesky()?.inverse();
+    Some(Matrix6::from_fn(|i, j| inv[(i, j)] * s[i] * s[j]))
+}
+
+/// Squared Mahalanobis distance between two poses under a covariance of
+/// `[δp, δθ]` (world frame), or `None` when the covariance is not invertible.
+fn mahalanobis2(a: &Pose, b: &Pose, covariance: &Matrix6<f64>) -> Option<f64> {
+    let dp = a.translation.vector - b.translation.vector;
+    let dtheta = (a.rotation * b.rotation.inverse()).scaled_axis();
+    let delta = Vector6::new(dp.x, dp.y, dp.z, dtheta.x, dtheta.y, dtheta.z);
+    let inv = covariance.cholesky()?.inverse();
+    Some((delta.transpose() * inv * delta)[(0, 0)])
+}
