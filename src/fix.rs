@@ -23,15 +23,15 @@
 //! covariance use the ray origins as given. For now the origins are zero (one centre).
 //!
 //! # Covariance
-//! The pose is estimated with one angular σ for every observation, but a landmark surveyed
-//! with standard deviation `σ_m` per axis at range `ρ` adds angular noise `σ_m / ρ` per
-//! tangent axis to its bearing (first order: the component of the landmark error across the
-//! line of sight, which is all a bearing sees). The reported covariance is the first-order
-//! covariance of the estimator actually used, the sandwich `H⁻¹ M H⁻¹` with
-//! `H = Σ Jᵢᵀ Jᵢ / σ²`, `M = Σ Jᵢᵀ Jᵢ (σ² + σ_m,ᵢ²/ρᵢ²) / σ⁴`, where `Jᵢ` (2×6) is the
-//! derivative of the tangent-plane bearing residual of inlier `i` with respect to the pose
-//! perturbation `[δp, δθ]` (world frame; the crate's convention). With every `σ_m = 0` it is
-//! `H⁻¹`, the covariance `refine_pose` reports.
+//! A landmark surveyed with standard deviation `σ_m` per axis at range `ρ` adds angular
+//! noise `σ_m / ρ` per tangent axis to its bearing (first order: only the component of the
+//! landmark error across the line of sight moves a bearing; the along-sight component is
+//! invisible). Each observation therefore gets the effective angular standard deviation
+//! `σᵢ = √(σ² + (σ_m,ᵢ/ρᵢ)²)`, with `ρᵢ` taken at the current pose estimate. The refinement
+//! ([`crate::solvers::refine_pose::refine_pose_with_sigmas`]) weights each observation by `1/σᵢ²`, and the
+//! reported 6×6 covariance is the refinement's `(Σᵢ Jᵢᵀ Jᵢ / σᵢ²)⁻¹`, ordered
+//! `[δp (m), δθ (rad)]` in the world frame. The approximation ignores that the landmark
+//! errors of one survey may be correlated and treats the range as known.
 //!
 //! # Example
 //! ```
@@ -59,9 +59,10 @@
 //! assert_eq!(estimate.n_inliers, 5);
 //! ```
 
-use crate::geometry::{Pose, Ray, angle_between, try_unit};
-use crate::solvers::{RefineOptions, RobustLoss, p3p, refine_pose};
-use nalgebra::{Matrix6, Point3, SMatrix, Vector3, Vector6};
+use crate::geometry::{Pose, Ray, angle_between};
+use crate::solvers::refine_pose::refine_pose_with_sigmas;
+use crate::solvers::{RefineError, RefineOptions, RobustLoss, p3p};
+use nalgebra::{Matrix6, Point3, Vector3, Vector6};
 use rand::{RngExt, SeedableRng};
 
 /// Observations needed for a fix: a minimal P3P sample.
@@ -101,10 +102,6 @@ pub const MAX_AMBIGUITY_REFINEMENTS: usize = 8;
 
 /// At most this many refine / re-score passes on the best hypothesis.
 pub const MAX_INLIER_PASSES: usize = 4;
-
-/// The information matrix, scaled to unit diagonal, must have a reciprocal condition number
-/// above this; otherwise the geometry does not determine the pose (`degenerate_geometry`).
-pub const MIN_RECIPROCAL_CONDITION: f64 = 1e-12;
 
 /// A pose prior: the rig is within `radius_m` of `position_in_world`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -628,7 +625,8 @@ impl Problem<'_> {
             .collect()
     }
 
-    /// Refines a hypothesis on its inliers, re-scores, repeats until the inliers settle.
+    /// Refines a hypothesis on its inliers (each weighted by its effective σ), re-scores,
+    /// repeats until the inliers settle.
     fn refine(&self, h: &Hypothesis) -> Result<Refined, (FixStatus, String)> {
         let n = self.n();
         let mut pose = h.pose;
@@ -642,144 +640,89 @@ impl Problem<'_> {
         for _ in 0..MAX_INLIER_PASSES {
             let idx: Vec<usize> = (0..n).filter(|&i| inliers[i]).collect();
             if idx.len() < MIN_OBSERVATIONS {
-                break;
+                return Err((
+                    FixStatus::NoSolution,
+                    "too few observations agree with the refined pose".to_string(),
+                ));
             }
             let rays: Vec<Ray> = idx.iter().map(|&i| self.rays[i]).collect();
             let points: Vec<Vector3<f64>> = idx.iter().map(|&i| self.points[i]).collect();
-            let refined = refine_pose(&pose, &rays, &points, &refine_options).map_err(|e| {
-                (
-                    FixStatus::NoSolution,
-                    format!("the pose refinement failed: {e}"),
-                )
-            })?;
+            let sigmas: Vec<f64> = idx
+                .iter()
+                .map(|&i| self.effective_sigma(&pose, i))
+                .collect();
+            let refined = refine_pose_with_sigmas(&pose, &rays, &points, &sigmas, &refine_options)
+                .map_err(|e| {
+                    let status = if e == RefineError::RankDeficient {
+                        FixStatus::DegenerateGeometry
+                    } else {
+                        FixStatus::NoSolution
+                    };
+                    (status, format!("the pose refinement failed: {e}"))
+                })?;
             pose = refined.world_from_rig;
-            last = Some((refined.iterations, refined.converged));
             let rescored = self.score(&pose);
             let settled = rescored.inliers == inliers;
-            inliers = rescored.inliers;
+            last = Some((refined, idx));
             if settled {
                 break;
             }
+            inliers = rescored.inliers;
         }
-        let (iterations, converged) = last.unwrap_or((0, false));
-        let idx: Vec<usize> = (0..n).filter(|&i| inliers[i]).collect();
-        if idx.len() < MIN_OBSERVATIONS {
+        let Some((refined, idx)) = last else {
+            return Err((FixStatus::NoSolution, "no refinement pass ran".to_string()));
+        };
+        let mut inliers = vec![false; n];
+        for &i in &idx {
+            inliers[i] = true;
+        }
+        if refined.covariance.iter().any(|v| !v.is_finite()) {
             return Err((
-                FixStatus::NoSolution,
-                "too few observations agree with the refined pose".to_string(),
+                FixStatus::DegenerateGeometry,
+                "the observations do not determine the pose".to_string(),
             ));
         }
-        let covariance = self.covariance(&pose, &idx).ok_or_else(|| {
-            (
-                FixStatus::DegenerateGeometry,
-                "the observations do not determine the pose (singular information matrix)"
-                    .to_string(),
-            )
-        })?;
         let sum_sq: f64 = idx.iter().map(|&i| self.residual(&pose, i).powi(2)).sum();
         Ok(Refined {
             pose,
             count: idx.len(),
             inliers,
-            covariance,
+            covariance: refined.covariance,
             rms_residual_rad: (sum_sq / idx.len() as f64).sqrt(),
-            iterations,
-            converged,
+            iterations: refined.iterations,
+            converged: refined.converged,
         })
     }
 
-    /// The sandwich covariance of the module docs over the observations `idx`.
-    fn covariance(&self, pose: &Pose, idx: &[usize]) -> Option<Matrix6<f64>> {
-        let sigma2 = self.options.sigma_rad.powi(2);
-        let mut h = Matrix6::zeros();
-        let mut m = Matrix6::zeros();
-        for &i in idx {
-            let centre = self.centre(pose, i);
-            let to_point = self.points[i] - centre;
-            let range = to_point.norm();
-            let w = try_unit(&to_point)?;
-            let b = pose.rotation * self.rays[i].direction;
-            let o = pose.rotation * self.rays[i].origin;
-            let (t1, t2) = tangent_pair(&w)?;
-            let mut j = SMatrix::<f64, 2, 6>::zeros();
-            for (row, t) in [t1, t2].iter().enumerate() {
-                let dp = t / range;
-                let dtheta = b.cross(t) + o.cross(t) / range;
-                j.fixed_view_mut::<1, 3>(row, 0).copy_from(&dp.transpose());
-                j.fixed_view_mut::<1, 3>(row, 3)
-                    .copy_from(&dtheta.transpose());
-            }
-            let jtj = j.transpose() * j;
-            let s = self.sigma_m[i] / range;
-            h += jtj / sigma2;
-            m += jtj * ((sigma2 + s * s) / (sigma2 * sigma2));
-        }
-        let h_inv = checked_inverse(&h)?;
-        let cov = h_inv * m * h_inv;
-        let cov = (cov + cov.transpose()) * 0.5;
-        cov.iter().all(|v| v.is_finite()).then_some(cov)
-    }
-
-    /// The `ok` fix of a unique minimal (n = 3) solution. P3P fits three bearings exactly,
-    /// so there is nothing to refine; the covariance is computed at the solution.
+    /// The `ok` fix of a unique minimal (n = 3) solution. P3P fits three bearings exactly;
+    /// the refinement only evaluates the covariance there (and polishes rounding).
     fn finish_minimal(&self, pose: &Pose) -> Fix {
         let n = self.n();
-        let idx: Vec<usize> = (0..n).collect();
-        let Some(covariance) = self.covariance(pose, &idx) else {
-            return Fix::failed(
-                FixStatus::DegenerateGeometry,
-                n,
-                "the three observations do not determine the pose (singular information matrix)",
-            );
-        };
-        let sum_sq: f64 = idx.iter().map(|&i| self.residual(pose, i).powi(2)).sum();
-        Fix {
-            status: FixStatus::Ok,
-            message: String::new(),
+        let h = Hypothesis {
+            pose: *pose,
             inliers: vec![true; n],
-            estimate: Some(FixEstimate {
-                world_from_rig: *pose,
-                covariance,
-                n_inliers: n,
-                rms_residual_rad: (sum_sq / n as f64).sqrt(),
-                iterations: 0,
-                converged: true,
-            }),
-            candidates: Vec::new(),
+            count: n,
+            cost: 0.0,
+        };
+        match self.refine(&h) {
+            Err((status, message)) => Fix::failed(status, n, message),
+            Ok(r) => Fix {
+                status: FixStatus::Ok,
+                message: String::new(),
+                // A minimal sample is used whole, whatever its residuals.
+                inliers: vec![true; n],
+                estimate: Some(FixEstimate {
+                    world_from_rig: r.pose,
+                    covariance: r.covariance,
+                    n_inliers: n,
+                    rms_residual_rad: r.rms_residual_rad,
+                    iterations: r.iterations,
+                    converged: r.converged,
+                }),
+                candidates: Vec::new(),
+            },
         }
     }
-}
-
-/// Two unit vectors completing the unit vector `w` to an orthonormal basis.
-fn tangent_pair(w: &Vector3<f64>) -> Option<(Vector3<f64>, Vector3<f64>)> {
-    let helper = if w.x.abs() < 0.9 {
-        Vector3::x()
-    } else {
-        Vector3::y()
-    };
-    let t1 = try_unit(&helper.cross(w))?;
-    Some((t1, w.cross(&t1)))
-}
-
-/// Inverse of a symmetric positive semi-definite 6×6 matrix, or `None` when it is singular
-/// or ill-conditioned beyond [`MIN_RECIPROCAL_CONDITION`] (after scaling to unit diagonal,
-/// which makes the test independent of the units of position and angle).
-fn checked_inverse(h: &Matrix6<f64>) -> Option<Matrix6<f64>> {
-    let d = Vector6::from_fn(|i, _| h[(i, i)]);
-    if d.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
-        return None;
-    }
-    let s = d.map(|v| 1.0 / v.sqrt());
-    let scaled = Matrix6::from_fn(|i, j| h[(i, j)] * s[i] * s[j]);
-    let eig = scaled.symmetric_eigenvalues();
-    let (min, max) = eig.iter().fold((f64::INFINITY, 0.0_f64), |(lo, hi), &v| {
-        (lo.min(v), hi.max(v))
-    });
-    if min.is_nan() || min <= MIN_RECIPROCAL_CONDITION * max {
-        return None;
-    }
-    let inv = scaled.cholesky()?.inverse();
-    Some(Matrix6::from_fn(|i, j| inv[(i, j)] * s[i] * s[j]))
 }
 
 /// Squared Mahalanobis distance between two poses under a covariance of
@@ -790,4 +733,286 @@ fn mahalanobis2(a: &Pose, b: &Pose, covariance: &Matrix6<f64>) -> Option<f64> {
     let delta = Vector6::new(dp.x, dp.y, dp.z, dtheta.x, dtheta.y, dtheta.z);
     let inv = covariance.cholesky()?.inverse();
     Some((delta.transpose() * inv * delta)[(0, 0)])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::bearing_in_rig;
+    use crate::synthetic::{normal, perturb_bearing, random_pose, random_unit_vector, rng};
+    use rand::{Rng, RngExt};
+
+    /// `n` landmarks all around a random pose, at ranges in [10, 60] m.
+    fn scene<R: Rng + ?Sized>(r: &mut R, n: usize) -> (Pose, Vec<Vector3<f64>>) {
+        let pose = random_pose(r, 20.0);
+        let points = (0..n)
+            .map(|_| pose.translation.vector + random_unit_vector(r) * r.random_range(10.0..60.0))
+            .collect();
+        (pose, points)
+    }
+
+    fn rays<R: Rng + ?Sized>(
+        r: &mut R,
+        pose: &Pose,
+        points: &[Vector3<f64>],
+        sigma: f64,
+    ) -> Vec<Ray> {
+        points
+            .iter()
+            .map(|p| {
+                let b = perturb_bearing(r, &bearing_in_rig(pose, p).unwrap(), sigma);
+                Ray::try_new(Vector3::zeros(), b).unwrap()
+            })
+            .collect()
+    }
+
+    fn options(sigma_rad: f64) -> FixOptions {
+        FixOptions {
+            sigma_rad,
+            ..FixOptions::default()
+        }
+    }
+
+    #[test]
+    fn noise_free_overdetermined_fix_is_exact() {
+        let mut r = rng(11);
+        for n in [4, 6, 12, 20] {
+            let (truth, points) = scene(&mut r, n);
+            let rays = rays(&mut r, &truth, &points, 0.0);
+            let fix = compute_fix(&rays, &points, &vec![0.0; n], &options(1e-3)).unwrap();
+            assert_eq!(fix.status, FixStatus::Ok, "n = {n}: {}", fix.message);
+            let e = fix.estimate.unwrap();
+            let (dp, dr) = crate::synthetic::pose_error(&e.world_from_rig, &truth);
+            // The rotation angle of `pose_error` comes from an arccosine: ~1e-8 rad resolution.
+            assert!(dp < 1e-7 && dr < 1e-7, "n = {n}: {dp} m, {dr} rad");
+            assert_eq!(e.n_inliers, n);
+            assert!(fix.inliers.iter().all(|&b| b));
+            assert!(e.covariance.cholesky().is_some());
+        }
+    }
+
+    /// Landmarks surveyed with σ_m and bearings with σ: the covariance must describe the
+    /// actual error (position NEES mean ≈ 3); without the inflation it would be too small.
+    #[test]
+    fn covariance_accounts_for_bearing_and_survey_noise() {
+        let mut r = rng(12);
+        let (sigma, sigma_m, trials, n) = (1e-3, 0.05, 300, 8);
+        let mut nees_sum = 0.0;
+        let mut nees_bearing_only = 0.0;
+        for _ in 0..trials {
+            let (truth, points) = scene(&mut r, n);
+            let rays = rays(&mut r, &truth, &points, sigma);
+            let surveyed: Vec<Vector3<f64>> = points
+                .iter()
+                .map(|p| p + Vector3::new(normal(&mut r), normal(&mut r), normal(&mut r)) * sigma_m)
+                .collect();
+            let fix = compute_fix(&rays, &surveyed, &vec![sigma_m; n], &options(sigma)).unwrap();
+            assert_eq!(fix.status, FixStatus::Ok, "{}", fix.message);
+            let e = fix.estimate.unwrap();
+            let dp = e.world_from_rig.translation.vector - truth.translation.vector;
+            let cov = e.covariance.fixed_view::<3, 3>(0, 0).into_owned();
+            nees_sum += (dp.transpose() * cov.try_inverse().unwrap() * dp)[(0, 0)];
+            let plain = compute_fix(&rays, &surveyed, &vec![0.0; n], &options(sigma)).unwrap();
+            let cov0 = plain
+                .estimate
+                .unwrap()
+                .covariance
+                .fixed_view::<3, 3>(0, 0)
+                .into_owned();
+            nees_bearing_only += (dp.transpose() * cov0.try_inverse().unwrap() * dp)[(0, 0)];
+        }
+        let mean = nees_sum / trials as f64;
+        let mean0 = nees_bearing_only / trials as f64;
+        eprintln!("position NEES mean {mean:.3} (without the survey inflation {mean0:.3})");
+        assert!((2.5..3.6).contains(&mean), "position NEES mean {mean}");
+        assert!(
+            mean0 > 2.0 * mean,
+            "without inflation NEES {mean0} vs {mean}"
+        );
+    }
+
+    #[test]
+    fn wrong_correspondences_are_rejected() {
+        let mut r = rng(13);
+        let sigma = 5e-4;
+        for _ in 0..20 {
+            let (truth, points) = scene(&mut r, 10);
+            let mut rays = rays(&mut r, &truth, &points, sigma);
+            rays.swap(2, 7); // two observations paired with the wrong landmarks
+            let fix = compute_fix(&rays, &points, &[0.0; 10], &options(sigma)).unwrap();
+            assert_eq!(fix.status, FixStatus::Ok, "{}", fix.message);
+            let expected: Vec<bool> = (0..10).map(|i| i != 2 && i != 7).collect();
+            assert_eq!(fix.inliers, expected);
+            let e = fix.estimate.unwrap();
+            assert_eq!(e.n_inliers, 8);
+            let (dp, _) = crate::synthetic::pose_error(&e.world_from_rig, &truth);
+            assert!(dp < 0.2, "{dp} m");
+        }
+    }
+
+    #[test]
+    fn three_observations_use_the_prior_or_report_ambiguity() {
+        let mut r = rng(14);
+        let mut ambiguous_cases = 0;
+        for _ in 0..200 {
+            let (truth, points) = scene(&mut r, 3);
+            let rays = rays(&mut r, &truth, &points, 0.0);
+            let all = p3p(
+                &[rays[0].direction, rays[1].direction, rays[2].direction],
+                &[points[0], points[1], points[2]],
+            );
+            let fix = compute_fix(&rays, &points, &[0.0; 3], &options(1e-3)).unwrap();
+            if all.len() == 1 {
+                assert_eq!(fix.status, FixStatus::Ok);
+                continue;
+            }
+            ambiguous_cases += 1;
+            assert_eq!(fix.status, FixStatus::Ambiguous);
+            assert_eq!(fix.candidates.len(), all.len());
+            assert!(fix.estimate.is_none() && fix.inliers.iter().all(|&b| !b));
+            // A prior that contains only the true solution picks it.
+            let nearest_other = all
+                .iter()
+                .map(|p| (p.translation.vector - truth.translation.vector).norm())
+                .filter(|&d| d > 1e-6)
+                .fold(f64::INFINITY, f64::min);
+            let prior = Prior {
+                position_in_world: truth.translation.vector,
+                radius_m: 0.5 * nearest_other,
+            };
+            let with_prior = FixOptions {
+                prior: Some(prior),
+                ..options(1e-3)
+            };
+            let fix = compute_fix(&rays, &points, &[0.0; 3], &with_prior).unwrap();
+            assert_eq!(fix.status, FixStatus::Ok, "{}", fix.message);
+            let (dp, _) =
+                crate::synthetic::pose_error(&fix.estimate.unwrap().world_from_rig, &truth);
+            assert!(dp < 1e-6);
+            // A prior far from every solution gives no solution.
+            let far = FixOptions {
+                prior: Some(Prior {
+                    position_in_world: truth.translation.vector + Vector3::new(1e4, 0.0, 0.0),
+                    radius_m: 1.0,
+                }),
+                ..options(1e-3)
+            };
+            let fix = compute_fix(&rays, &points, &[0.0; 3], &far).unwrap();
+            assert_eq!(fix.status, FixStatus::NoSolution);
+        }
+        assert!(
+            ambiguous_cases >= 20,
+            "only {ambiguous_cases} multi-solution cases"
+        );
+    }
+
+    #[test]
+    fn two_equally_supported_poses_are_ambiguous() {
+        let mut r = rng(15);
+        let sigma = 5e-4;
+        let (pose_a, points_a) = scene(&mut r, 5);
+        let (pose_b, points_b) = scene(&mut r, 5);
+        let mut rays_all = rays(&mut r, &pose_a, &points_a, sigma);
+        rays_all.extend(rays(&mut r, &pose_b, &points_b, sigma));
+        let points: Vec<Vector3<f64>> = points_a.into_iter().chain(points_b).collect();
+        let fix = compute_fix(&rays_all, &points, &[0.0; 10], &options(sigma)).unwrap();
+        assert_eq!(fix.status, FixStatus::Ambiguous, "{}", fix.message);
+        assert_eq!(fix.candidates.len(), 2);
+        assert!(fix.estimate.is_none());
+        // One more observation consistent with pose A breaks the tie.
+        let extra = pose_a.translation.vector + Vector3::new(5.0, 30.0, -4.0);
+        let mut rays_more = rays_all.clone();
+        rays_more.push(
+            Ray::try_new(Vector3::zeros(), bearing_in_rig(&pose_a, &extra).unwrap()).unwrap(),
+        );
+        let mut points_more = points.clone();
+        points_more.push(extra);
+        let fix = compute_fix(&rays_more, &points_more, &[0.0; 11], &options(sigma)).unwrap();
+        assert_eq!(fix.status, FixStatus::Ok, "{}", fix.message);
+        let (dp, _) = crate::synthetic::pose_error(&fix.estimate.unwrap().world_from_rig, &pose_a);
+        assert!(dp < 0.1);
+    }
+
+    #[test]
+    fn degenerate_and_insufficient_inputs_give_statuses() {
+        let mut r = rng(16);
+        let truth = random_pose(&mut r, 5.0);
+        // Landmarks on one line: P3P has no solution on any triple.
+        let line: Vec<Vector3<f64>> = (0..5)
+            .map(|k| Vector3::new(30.0 + 7.0 * k as f64, 10.0 + 3.0 * k as f64, 2.0 * k as f64))
+            .collect();
+        let rays_line = rays(&mut r, &truth, &line, 0.0);
+        let fix = compute_fix(&rays_line, &line, &[0.0; 5], &options(1e-3)).unwrap();
+        assert_eq!(fix.status, FixStatus::DegenerateGeometry, "{}", fix.message);
+        assert!(fix.estimate.is_none());
+        let fix = compute_fix(&rays_line[..2], &line[..2], &[0.0; 2], &options(1e-3)).unwrap();
+        assert_eq!(fix.status, FixStatus::TooFewObservations);
+        assert_eq!(fix.status.as_str(), "too_few_observations");
+        assert_eq!(fix.inliers, vec![false; 2]);
+        // Random bearings: nothing beyond a minimal sample agrees.
+        let (_, points) = scene(&mut r, 6);
+        let junk: Vec<Ray> = (0..6)
+            .map(|_| Ray::try_new(Vector3::zeros(), random_unit_vector(&mut r)).unwrap())
+            .collect();
+        let fix = compute_fix(&junk, &points, &[0.0; 6], &options(1e-4)).unwrap();
+        assert_eq!(fix.status, FixStatus::NoSolution, "{}", fix.message);
+    }
+
+    #[test]
+    fn invalid_inputs_are_errors() {
+        let rays = [Ray::try_new(Vector3::zeros(), Vector3::x()).unwrap(); 3];
+        let points = [Vector3::new(1.0, 2.0, 3.0); 3];
+        assert!(matches!(
+            compute_fix(&rays, &points[..2], &[0.0; 3], &FixOptions::default()),
+            Err(FixError::LengthMismatch { .. })
+        ));
+        assert!(matches!(
+            compute_fix(&rays, &points, &[0.0; 3], &options(0.0)),
+            Err(FixError::InvalidParameter {
+                name: "sigma_rad",
+                ..
+            })
+        ));
+        assert!(matches!(
+            compute_fix(&rays, &points, &[0.0, -1.0, 0.0], &FixOptions::default()),
+            Err(FixError::InvalidParameter {
+                name: "landmark_sigma_m",
+                ..
+            })
+        ));
+        let mut bad = points;
+        bad[1].x = f64::NAN;
+        assert_eq!(
+            compute_fix(&rays, &bad, &[0.0; 3], &FixOptions::default()),
+            Err(FixError::NonFinite { index: 1 })
+        );
+    }
+
+    #[test]
+    fn random_triples_are_distinct_and_reproducible() {
+        let rays = vec![Ray::try_new(Vector3::zeros(), Vector3::x()).unwrap(); 30];
+        let points = vec![Vector3::zeros(); 30];
+        let sigmas = vec![0.0; 30];
+        let opts = FixOptions::default();
+        let problem = Problem {
+            rays: &rays,
+            points: &points,
+            sigma_m: &sigmas,
+            options: &opts,
+        };
+        let a = problem.triples();
+        assert_eq!(a.len(), DEFAULT_RANDOM_TRIPLES);
+        assert!(
+            a.iter()
+                .all(|t| t[0] != t[1] && t[0] != t[2] && t[1] != t[2] && t.iter().all(|&i| i < 30))
+        );
+        assert_eq!(a, problem.triples());
+        let few = Problem {
+            rays: &rays[..7],
+            points: &points[..7],
+            sigma_m: &sigmas[..7],
+            options: &opts,
+        };
+        assert_eq!(few.triples().len(), 35);
+    }
 }

@@ -29,12 +29,14 @@ fn demo_origin() -> Result<Geodetic, CliError> {
         .map_err(|e| CliError::Internal(format!("demo origin: {e}")))
 }
 
-/// `enu_from_rig` of a rig with heading `h` (clockwise from north), pitch `p` (nose up
-/// positive) and roll `r` (right side down positive), radians; rig x forward, y left, z up.
-pub fn enu_from_rig_from_angles(h: f64, p: f64, r: f64) -> Rotation3<f64> {
-    Rotation3::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_2 - h)
-        * Rotation3::from_axis_angle(&Vector3::y_axis(), -p)
-        * Rotation3::from_axis_angle(&Vector3::x_axis(), r)
+/// `enu_from_rig` of heading, pitch and roll in degrees.
+fn attitude_deg(heading: f64, pitch: f64, roll: f64) -> Rotation3<f64> {
+    HeadingPitchRoll {
+        heading_rad: heading.to_radians(),
+        pitch_rad: pitch.to_radians(),
+        roll_rad: roll.to_radians(),
+    }
+    .to_enu_from_rig()
 }
 
 /// A synthetic scene for the demo: landmarks, observations and the true poses (ENU at
@@ -84,11 +86,11 @@ pub fn demo_scene() -> Result<DemoScene, CliError> {
     let truth = vec![
         Pose::from_parts(
             Translation3::new(4.0, -3.0, 1.8),
-            enu_from_rig_from_angles(35f64.to_radians(), 2f64.to_radians(), -1.5f64.to_radians()),
+            attitude_deg(35.0, 2.0, -1.5),
         ),
         Pose::from_parts(
             Translation3::new(8.1, 2.9, 1.7),
-            enu_from_rig_from_angles(41f64.to_radians(), 1f64.to_radians(), 0.5f64.to_radians()),
+            attitude_deg(41.0, 1.0, 0.5),
         ),
     ];
     let sigma = DEMO_SIGMA_DEG.to_radians();
