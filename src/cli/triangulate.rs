@@ -4,7 +4,7 @@ use super::{CliError, TriangulateSettings};
 use crate::geo::{Geodetic, LocalFrame};
 use crate::geometry::Ray;
 use crate::io::{InputError, RayRecord};
-use crate::triangulation::{RayObservation, triangulate_rays};
+use crate::triangulation::{RayObservation, TriangulationError, triangulate_rays};
 use nalgebra::Matrix3;
 use std::collections::HashMap;
 use std::io::Write;
@@ -139,7 +139,7 @@ pub fn triangulate(
             });
         }
         let result = match triangulate_rays(&observations) {
-            Err(e) => Err(("not_triangulated".to_string(), e.to_string())),
+            Err(e) => Err((status_of(&e).to_string(), e.to_string())),
             Ok(t) => match local.try_to_geodetic(&t.point) {
                 Err(e) => Err(("no_geodetic_position".to_string(), e.to_string())),
                 Ok(g) => {
@@ -158,4 +158,19 @@ pub fn triangulate(
         });
     }
     Ok(out)
+}
+
+/// The stable status token of a triangulation failure (the `status` column).
+pub fn status_of(error: &TriangulationError) -> &'static str {
+    match error {
+        TriangulationError::TooFewRays(_) => "too_few_rays",
+        TriangulationError::NoParallax { .. } | TriangulationError::IllConditioned { .. } => {
+            "no_parallax"
+        }
+        TriangulationError::BehindRay { .. } => "behind_ray",
+        TriangulationError::InvalidRay { .. } | TriangulationError::InvalidNoise { .. } => {
+            "invalid_ray"
+        }
+        TriangulationError::NonFinite => "non_finite",
+    }
 }
