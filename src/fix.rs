@@ -538,15 +538,19 @@ impl Problem<'_> {
         }
         let margin = (AMBIGUITY_FRACTION * best.count as f64).floor() as usize;
         let close = best.count.saturating_sub(margin).max(MIN_OBSERVATIONS + 1);
+        let best_information = information(&best.covariance);
         let mut candidates = vec![best.pose];
         let mut refinements = 0;
         for h in hypotheses.iter().skip(1) {
             if h.count < close || refinements >= MAX_AMBIGUITY_REFINEMENTS {
                 break;
             }
-            if candidates.iter().any(|c| {
-                mahalanobis2(&h.pose, c, &best.covariance).is_some_and(|d| d <= SAME_POSE_GATE_CHI2)
-            }) {
+            let same = |c: &Pose| {
+                best_information
+                    .as_ref()
+                    .is_some_and(|info| mahalanobis2(&h.pose, c, info) <= SAME_POSE_GATE_CHI2)
+            };
+            if candidates.iter().any(same) {
                 continue;
             }
             refinements += 1;
@@ -554,10 +558,12 @@ impl Problem<'_> {
             if other.count < close {
                 continue;
             }
-            let sum = best.covariance + other.covariance;
+            let Some(sum_information) = information(&(best.covariance + other.covariance)) else {
+                continue;
+            };
             let distinct = candidates
                 .iter()
-                .all(|c| mahalanobis2(&other.pose, c, &sum).is_none_or(|d| d > DISTINCT_POSE_CHI2));
+                .all(|c| mahalanobis2(&other.pose, c, &sum_information) > DISTINCT_POSE_CHI2);
             if distinct {
                 candidates.push(other.pose);
             }
@@ -725,14 +731,18 @@ impl Problem<'_> {
     }
 }
 
-/// Squared Mahalanobis distance between two poses under a covariance of
-/// `[δp, δθ]` (world frame), or `None` when the covariance is not invertible.
-fn mahalanobis2(a: &Pose, b: &Pose, covariance: &Matrix6<f64>) -> Option<f64> {
+/// The inverse of a pose covariance, or `None` when it is not positive definite.
+fn information(covariance: &Matrix6<f64>) -> Option<Matrix6<f64>> {
+    covariance.cholesky().map(|c| c.inverse())
+}
+
+/// Squared Mahalanobis distance between two poses under the information matrix (inverse
+/// covariance) of `[δp, δθ]` (world frame).
+fn mahalanobis2(a: &Pose, b: &Pose, information: &Matrix6<f64>) -> f64 {
     let dp = a.translation.vector - b.translation.vector;
     let dtheta = (a.rotation * b.rotation.inverse()).scaled_axis();
     let delta = Vector6::new(dp.x, dp.y, dp.z, dtheta.x, dtheta.y, dtheta.z);
-    let inv = covariance.cholesky()?.inverse();
-    Some((delta.transpose() * inv * delta)[(0, 0)])
+    (delta.transpose() * information * delta)[(0, 0)]
 }
 
 #[cfg(test)]
