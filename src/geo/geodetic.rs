@@ -17,6 +17,11 @@ const MIN_ECEF_RADIUS_M: f64 = WGS84_B_M + ALT_MIN_M;
 /// be [`ALT_MAX_M`]: the ellipsoid is never farther from the centre than `a`.
 const MAX_ECEF_RADIUS_M: f64 = WGS84_A_M + ALT_MAX_M;
 
+/// How far (metres) beyond [`ALT_MIN_M`] or [`ALT_MAX_M`] a height computed from ECEF may
+/// fall and still be clamped onto the limit: above the conversion error (≤ 4e-7 m), far
+/// below anything physical.
+const HEIGHT_LIMIT_SLACK_M: f64 = 1e-5;
+
 /// A WGS84 position: geodetic latitude and longitude in degrees, ellipsoidal height in metres.
 ///
 /// Construct it with [`Geodetic::try_new`] (or deserialize it, which runs the same checks),
@@ -179,15 +184,17 @@ impl Geodetic {
     /// Latitude and height come from the `sguaba` crate (`Coordinate<Ecef>::to_wgs84`: the
     /// iteration of Shu & Li (2010) for heights within −10 km … 50 km, the closed form of
     /// Quan & Zhang (2024) elsewhere); the longitude is `atan2(y, x)` (0 on the polar axis).
-    /// Measured accuracy: ≤ 1e-8 m for heights in [`ALT_MIN_M`, `ALT_MAX_M`]
-    /// (see `docs/geodesy.md`).
+    /// Measured accuracy (position error of the result): ≤ 1e-8 m for heights −10 km … 50 km,
+    /// ≤ 4e-7 m over the rest of [[`ALT_MIN_M`], [`ALT_MAX_M`]] (see `docs/geodesy.md`).
     ///
     /// # Errors
     /// - [`GeoError::NonFinite`] if a coordinate is NaN or infinite;
     /// - [`GeoError::EcefOutOfRange`] if the point is so close to the Earth's centre (or so
     ///   far from it) that no height in [[`ALT_MIN_M`], [`ALT_MAX_M`]] can reach it — this
     ///   includes the Earth's centre itself, where latitude is undefined;
-    /// - [`GeoError::AltitudeOutOfRange`] if the computed height is outside that range.
+    /// - [`GeoError::AltitudeOutOfRange`] if the computed height is outside that range by
+    ///   more than 10 µm (a height within 10 µm outside is clamped onto the limit, so that
+    ///   points built at a limit convert back).
     ///
     /// # Units
     /// Input metres (ECEF); output degrees, degrees, metres.
@@ -233,6 +240,15 @@ impl Geodetic {
                 what: "geodetic result",
             });
         }
+        // A point built from a height exactly at a limit must convert back: heights outside
+        // the range by no more than the conversion error are clamped onto it.
+        let alt_m = if (ALT_MIN_M - HEIGHT_LIMIT_SLACK_M..ALT_MIN_M).contains(&alt_m) {
+            ALT_MIN_M
+        } else if (ALT_MAX_M..=ALT_MAX_M + HEIGHT_LIMIT_SLACK_M).contains(&alt_m) {
+            ALT_MAX_M
+        } else {
+            alt_m
+        };
         let lat_deg = lat_rad.to_degrees().clamp(-90.0, 90.0);
         let lon_deg = ecef.y.atan2(ecef.x).to_degrees();
         Self::try_new(lat_deg, lon_deg, alt_m)
@@ -255,7 +271,22 @@ mod tests {
 
     #[test]
     fn shell_bounds_are_consistent_with_the_ellipsoid() {
-        assert!(MIN_ECEF_RADIUS_M > 6.3e6 && MAX_ECEF_RADIUS_M < 6.5e6);
+        // The extreme corners of the supported heights lie inside the shell and convert back.
+        for (lat, alt) in [
+            (90.0, ALT_MIN_M),
+            (0.0, ALT_MIN_M),
+            (90.0, ALT_MAX_M),
+            (0.0, ALT_MAX_M),
+        ] {
+            let g = Geodetic::try_new(lat, 0.0, alt).unwrap();
+            let r = g.to_ecef().norm();
+            assert!(
+                (MIN_ECEF_RADIUS_M..=MAX_ECEF_RADIUS_M).contains(&r),
+                "{g:?}"
+            );
+            let back = Geodetic::try_from_ecef(&g.to_ecef()).unwrap();
+            assert!((back.alt_m - alt).abs() < 1e-6 && (back.lat_deg - lat).abs() < 1e-12);
+        }
         assert!((WGS84_E2 - 6.694_379_990_141_3e-3).abs() < 1e-15);
     }
 }
