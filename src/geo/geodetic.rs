@@ -10,12 +10,16 @@ use super::{ALT_MAX_M, ALT_MIN_M, GeoError, WGS84_A_M, WGS84_B_M, WGS84_INV_F};
 /// WGS84 first eccentricity squared, `e² = f (2 − f)`.
 const WGS84_E2: f64 = (2.0 - 1.0 / WGS84_INV_F) / WGS84_INV_F;
 
+/// Margin (metres) added on both sides of the ECEF shell below, so that rounding of a point
+/// built exactly at a height limit never pushes it out of the shell; the height check after
+/// the conversion is the exact one.
+const SHELL_MARGIN_M: f64 = 1.0;
 /// Smallest distance from the Earth's centre (metres) of a point whose ellipsoidal height can
-/// be [`ALT_MIN_M`]: the ellipsoid is never closer to the centre than `b`.
-const MIN_ECEF_RADIUS_M: f64 = WGS84_B_M + ALT_MIN_M;
+/// be [`ALT_MIN_M`] (the ellipsoid is never closer to the centre than `b`), less a margin.
+const MIN_ECEF_RADIUS_M: f64 = WGS84_B_M + ALT_MIN_M - SHELL_MARGIN_M;
 /// Largest distance from the Earth's centre (metres) of a point whose ellipsoidal height can
-/// be [`ALT_MAX_M`]: the ellipsoid is never farther from the centre than `a`.
-const MAX_ECEF_RADIUS_M: f64 = WGS84_A_M + ALT_MAX_M;
+/// be [`ALT_MAX_M`] (the ellipsoid is never farther from the centre than `a`), plus a margin.
+const MAX_ECEF_RADIUS_M: f64 = WGS84_A_M + ALT_MAX_M + SHELL_MARGIN_M;
 
 /// How far (metres) beyond [`ALT_MIN_M`] or [`ALT_MAX_M`] a height computed from ECEF may
 /// fall and still be clamped onto the limit: above the conversion error (≤ 4e-7 m), far
@@ -272,13 +276,13 @@ mod tests {
     #[test]
     fn shell_bounds_are_consistent_with_the_ellipsoid() {
         // The extreme corners of the supported heights lie inside the shell and convert back.
-        for (lat, alt) in [
-            (90.0, ALT_MIN_M),
-            (0.0, ALT_MIN_M),
-            (90.0, ALT_MAX_M),
-            (0.0, ALT_MAX_M),
-        ] {
-            let g = Geodetic::try_new(lat, 0.0, alt).unwrap();
+        let corners = [-90.0, 0.0, 90.0].into_iter().flat_map(|lat| {
+            [-179.9, 0.0, 33.3, 180.0]
+                .into_iter()
+                .flat_map(move |lon| [ALT_MIN_M, ALT_MAX_M].map(|alt| (lat, lon, alt)))
+        });
+        for (lat, lon, alt) in corners {
+            let g = Geodetic::try_new(lat, lon, alt).unwrap();
             let r = g.to_ecef().norm();
             assert!(
                 (MIN_ECEF_RADIUS_M..=MAX_ECEF_RADIUS_M).contains(&r),
