@@ -1,0 +1,704 @@
+//! Non-linear pose refinement on angular residuals, for central and non-central rigs.
+//!
+//! [`refine_pose`] minimises the angular misfit between observed rays and the directions to
+//! known world points, over all correspondences, by Levenberg–Marquardt (damped
+//! Gauss–Newton) with analytic Jacobians, optional robust losses (iteratively reweighted)
+//! and a 6×6 covariance of the result.
+//!
+//! # Model
+//! Observation `i` is a ray in the rig frame with origin `oᵢ` (the centre of the camera that
+//! saw it; zero for a central camera) and unit direction `dᵢ`, towards the world point
+//! `Xᵢ`. With `world_from_rig = (R, p)` the predicted direction is
+//!
+//! ```text
+//! vᵢ = Rᵀ (Xᵢ − p) − oᵢ,      uᵢ = vᵢ / |vᵢ|.
+//! ```
+//!
+//! # Residual
+//! Let `(t₁, t₂, dᵢ)` be the right-handed basis of [`crate::synthetic::tangent_basis`],
+//! `sᵢ = (t₁·uᵢ, t₂·uᵢ)` and `cᵢ = dᵢ·uᵢ`. The residual is the stereographic projection of
+//! `uᵢ` from `−dᵢ` onto the tangent plane of `dᵢ`:
+//!
+//! ```text
+//! rᵢ = 2 sᵢ / (1 + cᵢ),      |rᵢ| = 2 tan(θᵢ / 2) = θᵢ + θᵢ³/12 + …
+//! ```
+//!
+//! where `θᵢ` is the angle between `uᵢ` and `dᵢ`. It is smooth everywhere except at the
+//! antipode of `dᵢ`, its magnitude is the angle to first order and it grows monotonically
+//! with the angle on all of `[0, π)`, so a gross outlier always has a large residual (the
+//! plain tangent-plane projection `sᵢ`, of magnitude `sin θᵢ`, would make a bearing pointing
+//! backwards look like a perfect fit). Within [`ANTIPODAL_LIMIT`] of the antipode the
+//! residual is frozen at its boundary magnitude with a zero Jacobian.
+//!
+//! # Parameterisation and covariance
+//! The update is `world_from_rig ← (exp(δθ)·R, p + δp)` with the state ordered `[δp, δθ]`
+//! (metres and radians, both in the world frame): the project convention of the 6×6 pose
+//! covariance. The covariance reported is `(Σᵢ ωᵢ Jᵢᵀ Jᵢ / σᵢ²)⁻¹` at the solution, with
+//! `ωᵢ` the robust weight (1 without a robust loss, so it is `σ² (JᵀJ)⁻¹` for one common
+//! `σ`). See `docs/refine_pose.md` for the derivation.
+//!
+//! # References
+//! - K. Levenberg (1944), D. Marquardt (1963): damped least squares.
+//! - R. Hartley, A. Zisserman, *Multiple View Geometry*, 2nd ed., appendix A6 (sparse/robust
+//!   Levenberg–Marquardt, covariance of the estimate).
+//! - P. J. Huber (1964), *Robust estimation of a location parameter*; the Cauchy (Lorentzian)
+//!   loss and IRLS weights as in B. Triggs et al., *Bundle adjustment — a modern synthesis*
+//!   (2000), §3.
+
+use crate::geometry::{Pose, Ray, is_finite};
+use crate::synthetic::tangent_basis;
+use nalgebra::{
+    Cholesky, Matrix2x3, Matrix6, Rotation3, SMatrix, Translation3, UnitQuaternion, Vector2,
+    Vector3, Vector6,
+};
+use thiserror::Error;
+
+/// Angular size of one pixel of a Ladybug2 camera head (radians), the figure of the Visual
+/// GPS proposal (`Δθ pixel resolution = 0.00167557 rad`, about 0.096°).
+pub const LADYBUG2_PIXEL_RAD: f64 = 0.001_675_57;
+
+/// Default standard deviation of the angular noise per tangent axis (radians): one
+/// Ladybug2 pixel, [`LADYBUG2_PIXEL_RAD`]. Landmark vertices picked by hand are rarely better
+/// than a pixel; set [`RefineOptions::sigma_rad`] to your own figure.
+pub const DEFAULT_SIGMA_RAD: f64 = LADYBUG2_PIXEL_RAD;
+
+/// Fewest correspondences accepted (three give six residuals for six unknowns).
+pub const MIN_CORRESPONDENCES: usize = 3;
+
+/// Default iteration budget of [`RefineOptions::max_iterations`]. Started within a few
+/// degrees and a few percent of the range, the solver needs about five.
+pub const DEFAULT_MAX_ITERATIONS: usize = 50;
+
+/// Default [`RefineOptions::step_tolerance_rad`]: iteration stops when the step moves the
+/// attitude by less than this angle and the position by less than this angle times the RMS
+/// range of the points (1e-10 rad ≈ 6e-8 Ladybug2 pixels).
+pub const DEFAULT_STEP_TOLERANCE_RAD: f64 = 1e-10;
+
+/// A world point closer than this to the origin of its ray (metres) has no direction: it is
+/// an input error at the initial pose and a rejected step during the iterations.
+pub const MIN_POINT_DISTANCE_M: f64 = 1e-6;
+
+/// Where `1 + cos θ` falls below this (θ within about 1.4e-4 rad of π) the residual is held
+/// at its boundary magnitude `2·√((2 − L)/L)` with a zero Jacobian: the direction to the
+/// antipode of a bearing is undefined.
+pub const ANTIPODAL_LIMIT: f64 = 1e-8;
+
+/// Smallest reciprocal condition number (of the normal matrix scaled to unit diagonal)
+/// accepted at the solution; below it the geometry does not determine the pose (e.g. all
+/// points on one line) and [`RefineError::RankDeficient`] is returned.
+pub const MIN_RECIPROCAL_CONDITION: f64 = 1e-12;
+
+/// Initial Levenberg–Marquardt damping (relative to the diagonal of the normal matrix).
+const INITIAL_DAMPING: f64 = 1e-4;
+/// Smallest damping: below this the step is pure Gauss–Newton to rounding.
+const MIN_DAMPING: f64 = 1e-12;
+/// Largest damping before the iteration gives up on finding a decrease.
+const MAX_DAMPING: f64 = 1e12;
+/// Factor by which the damping shrinks after an accepted step and grows after a rejection.
+const DAMPING_FACTOR: f64 = 10.0;
+/// Floor of a diagonal entry used for damping, relative to the largest diagonal entry, so a
+/// zero diagonal entry still gets damped.
+const MIN_DAMPING_DIAGONAL_RATIO: f64 = 1e-12;
+
+/// Robust loss applied to the angular residual magnitude `x = |rᵢ|` (radians).
+///
+/// The solver minimises `Σᵢ ρ(xᵢ)/σᵢ²` by iteratively reweighted Gauss–Newton with the
+/// weights `ω(x) = ρ'(x)/x`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum RobustLoss {
+    /// Least squares: `ρ(x) = x²/2`, `ω = 1`.
+    None,
+    /// Huber: quadratic up to `scale_rad`, linear beyond (`ω = min(1, k/x)`, `k` the
+    /// scale). Convex; outliers keep a bounded influence.
+    Huber {
+        /// Where the loss turns linear (radians), typically 2–3 σ.
+        scale_rad: f64,
+    },
+    /// Cauchy: `ρ(x) = (k²/2)·ln(1 + x²/k²)`, `ω = 1/(1 + x²/k²)`. Redescending: the
+    /// influence of gross outliers vanishes, but the cost is not convex, so start near the
+    /// solution.
+    Cauchy {
+        /// Scale of the loss (radians), typically 1–3 σ.
+        scale_rad: f64,
+    },
+}
+
+impl RobustLoss {
+    /// The loss `ρ(x)` and the IRLS weight `ω(x) = ρ'(x)/x` of a residual magnitude `x ≥ 0`.
+    #[inline]
+    fn evaluate(&self, x: f64) -> (f64, f64) {
+        match *self {
+            Self::None => (0.5 * x * x, 1.0),
+            Self::Huber { scale_rad: k } => {
+                if x <= k {
+                    (0.5 * x * x, 1.0)
+                } else {
+                    (k * (x - 0.5 * k), k / x)
+                }
+            }
+            Self::Cauchy { scale_rad: k } => {
+                let z = (x / k) * (x / k);
+                (0.5 * k * k * z.ln_1p(), 1.0 / (1.0 + z))
+            }
+        }
+    }
+
+    /// True when the scale (if any) is finite and positive.
+    fn is_valid(&self) -> bool {
+        match *self {
+            Self::None => true,
+            Self::Huber { scale_rad } | Self::Cauchy { scale_rad } => {
+                scale_rad.is_finite() && scale_rad > 0.0
+            }
+        }
+    }
+}
+
+/// Options of [`refine_pose`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RefineOptions {
+    /// Standard deviation of the angular noise per tangent axis (radians), for observations
+    /// without their own σ. Scales the covariance; does not change the solution without a
+    /// robust loss. Default [`DEFAULT_SIGMA_RAD`].
+    pub sigma_rad: f64,
+    /// Robust loss. Default [`RobustLoss::None`].
+    pub loss: RobustLoss,
+    /// Iteration budget (linear solves, rejected steps included). Zero evaluates the
+    /// covariance at the initial pose without moving it (then `converged` is false).
+    /// Default [`DEFAULT_MAX_ITERATIONS`].
+    pub max_iterations: usize,
+    /// Convergence threshold on the step (radians): attitude change and position change
+    /// divided by the RMS range of the points. Default [`DEFAULT_STEP_TOLERANCE_RAD`].
+    pub step_tolerance_rad: f64,
+    /// When the budget runs out before convergence: return the best pose found with
+    /// `converged: false` (true) or fail with [`RefineError::NoConvergence`] (false, the
+    /// default).
+    pub accept_unconverged: bool,
+}
+
+impl Default for RefineOptions {
+    fn default() -> Self {
+        Self {
+            sigma_rad: DEFAULT_SIGMA_RAD,
+            loss: RobustLoss::None,
+            max_iterations: DEFAULT_MAX_ITERATIONS,
+            step_tolerance_rad: DEFAULT_STEP_TOLERANCE_RAD,
+            accept_unconverged: false,
+        }
+    }
+}
+
+/// The result of [`refine_pose`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RefinedPose {
+    /// The refined `world_from_rig`.
+    pub world_from_rig: Pose,
+    /// Covariance of `[δp (m), δθ (rad)]`, world frame, with the perturbation
+    /// `world_from_rig = (exp(δθ)·R̂, p̂ + δp)`: `(Σᵢ ωᵢ Jᵢᵀ Jᵢ / σᵢ²)⁻¹` at the solution.
+    pub covariance: Matrix6<f64>,
+    /// Iterations used (linear solves, rejected steps included).
+    pub iterations: usize,
+    /// Root mean square of the exact angles between observed and predicted directions over
+    /// all observations, outliers included (radians, unweighted).
+    pub rms_residual_rad: f64,
+    /// True when the step tolerance was met within the budget.
+    pub converged: bool,
+}
+
+/// Why [`refine_pose`] failed.
+#[derive(Clone, Copy, Debug, Error, PartialEq)]
+pub enum RefineError {
+    /// Fewer than [`MIN_CORRESPONDENCES`] correspondences.
+    #[error("need at least {MIN_CORRESPONDENCES} correspondences, got {0}")]
+    TooFewCorrespondences(usize),
+    /// The input slices have different lengths.
+    #[error("mismatched lengths: {rays} rays, {points} points, {sigmas} sigmas")]
+    LengthMismatch {
+        /// Number of rays.
+        rays: usize,
+        /// Number of points.
+        points: usize,
+        /// Number of per-observation σ (equal to `rays` when none were given).
+        sigmas: usize,
+    },
+    /// The initial pose has a non-finite entry.
+    #[error("the initial pose is not finite")]
+    NonFiniteInitialPose,
+    /// A ray has a non-finite origin or direction.
+    #[error("ray {0} is not finite")]
+    NonFiniteRay(usize),
+    /// A world point is not finite.
+    #[error("point {0} is not finite")]
+    NonFinitePoint(usize),
+    /// A ray has a zero direction.
+    #[error("ray {0} has a zero direction")]
+    ZeroDirection(usize),
+    /// A per-observation σ is not finite and positive.
+    #[error("sigma {value} of observation {index} is not finite and positive")]
+    InvalidSigma {
+        /// Index of the observation.
+        index: usize,
+        /// The offending value (radians).
+        value: f64,
+    },
+    /// An option is out of range (`sigma_rad` and loss scales must be finite and positive,
+    /// the step tolerance finite and non-negative).
+    #[error("invalid option: {0}")]
+    InvalidOptions(&'static str),
+    /// A world point is at (within [`MIN_POINT_DISTANCE_M`] of) the origin of its ray at the
+    /// initial pose.
+    #[error("point {0} is at the origin of its ray")]
+    PointAtRayOrigin(usize),
+    /// The normal equations are rank-deficient at the solution: the geometry does not
+    /// determine the pose (e.g. all points on one line), the covariance is undefined.
+    #[error("rank-deficient normal equations: the geometry does not determine the pose")]
+    RankDeficient,
+    /// The iteration budget ran out before the step tolerance was met (and
+    /// [`RefineOptions::accept_unconverged`] is false).
+    #[error("no convergence after {iterations} iterations (rms residual {rms_residual_rad} rad)")]
+    NoConvergence {
+        /// Iterations used.
+        iterations: usize,
+        /// RMS angular residual of the best pose found (radians).
+        rms_residual_rad: f64,
+    },
+}
+
+/// Refines `world_from_rig` by minimising angular residuals over all correspondences, every
+/// observation with the σ of the options.
+///
+/// `rays_in_rig[i]` is the observation of `points_in_world[i]`: its origin is the centre of
+/// the camera that saw it in the rig frame (all zero for a central camera) and its direction
+/// the observed bearing (normalised here, so any non-zero length will do). See the
+/// [module documentation](self) for the residual, the parameterisation and the covariance.
+///
+/// # Units
+/// Metres for points, ray origins and positions; radians for σ, loss scales and residuals.
+///
+/// # Errors
+/// See [`RefineError`]: too few or mismatched inputs, non-finite values, a point at its ray
+/// origin, degenerate geometry (rank-deficient normal equations) or no convergence.
+///
+/// # Example
+/// ```
+/// use nalgebra::{Rotation3, Translation3, Vector3};
+/// use vgps::geometry::{Pose, Ray};
+/// use vgps::solvers::refine_pose::{refine_pose, RefineOptions};
+///
+/// let truth = Pose::from_parts(
+///     Translation3::new(10.0, -4.0, 1.5),
+///     Rotation3::from_euler_angles(0.1, -0.2, 1.0),
+/// );
+/// let points = [
+///     Vector3::new(40.0, 5.0, 3.0),
+///     Vector3::new(-20.0, 30.0, 8.0),
+///     Vector3::new(15.0, -35.0, 0.0),
+///     Vector3::new(-30.0, -25.0, 12.0),
+///     Vector3::new(12.0, 2.0, 25.0),
+/// ];
+/// // A central camera: rays from the rig origin towards the points.
+/// let rays: Vec<Ray> = points
+///     .iter()
+///     .map(|x| Ray::try_new(Vector3::zeros(), truth.inverse_transform_vector(&(x - truth.translation.vector))).unwrap())
+///     .collect();
+/// // Start 0.5 m and about 3° away.
+/// let start = Pose::from_parts(
+///     Translation3::new(10.3, -4.4, 1.5),
+///     Rotation3::from_euler_angles(0.13, -0.2, 1.03),
+/// );
+/// let refined = refine_pose(&start, &rays, &points, &RefineOptions::default()).unwrap();
+/// assert!(refined.converged);
+/// assert!((refined.world_from_rig.translation.vector - truth.translation.vector).norm() < 1e-9);
+/// assert!(refined.rms_residual_rad < 1e-12);
+/// // One-pixel bearings from five points 30 m away: centimetre-to-decimetre position σ.
+/// let sigma_east = refined.covariance[(0, 0)].sqrt();
+/// assert!(sigma_east > 0.005 && sigma_east < 0.5);
+/// ```
+pub fn refine_pose(
+    initial: &Pose,
+    rays_in_rig: &[Ray],
+    points_in_world: &[Vector3<f64>],
+    options: &RefineOptions,
+) -> Result<RefinedPose, RefineError> {
+    refine(initial, rays_in_rig, points_in_world, None, options)
+}
+
+/// [`refine_pose`] with one angular standard deviation per observation (radians, per
+/// tangent axis), for rays of unequal quality (sub-pixel corners next to hand-picked
+/// vertices, cameras of different resolution). `options.sigma_rad` is not used.
+///
+/// # Errors
+/// As [`refine_pose`], plus [`RefineError::InvalidSigma`] and a length mismatch of
+/// `sigmas_rad`.
+pub fn refine_pose_with_sigmas(
+    initial: &Pose,
+    rays_in_rig: &[Ray],
+    points_in_world: &[Vector3<f64>],
+    sigmas_rad: &[f64],
+    options: &RefineOptions,
+) -> Result<RefinedPose, RefineError> {
+    refine(
+        initial,
+        rays_in_rig,
+        points_in_world,
+        Some(sigmas_rad),
+        options,
+    )
+}
+
+/// The cost, gradient and Gauss–Newton normal matrix at one pose.
+struct Linearization {
+    /// `Σ ωᵢ Jᵢᵀ Jᵢ / σᵢ²`.
+    normal: Matrix6<f64>,
+    /// `Σ ωᵢ Jᵢᵀ rᵢ / σᵢ²`.
+    gradient: Vector6<f64>,
+    /// `Σ ρ(|rᵢ|) / σᵢ²`.
+    cost: f64,
+    /// `Σ θᵢ²` of the exact angles.
+    sum_sq_angle: f64,
+}
+
+/// The residual of one observation and its Jacobian with respect to `vᵢ` (rig frame), or
+/// `None` when `vᵢ` is too short (the point sits on the ray origin) or not finite.
+///
+/// Returns `(r, ∂r/∂v, θ)`; the Jacobian is zero near the antipode.
+#[inline]
+fn residual(
+    direction: &Vector3<f64>,
+    v: &Vector3<f64>,
+) -> Option<(Vector2<f64>, Matrix2x3<f64>, f64)> {
+    let len = v.norm();
+    if !(len > MIN_POINT_DISTANCE_M && len.is_finite()) {
+        return None;
+    }
+    let u = v / len;
+    let (t1, t2) = tangent_basis(direction);
+    let s = Vector2::new(t1.dot(&u), t2.dot(&u));
+    let c = direction.dot(&u);
+    let angle = s.norm().atan2(c);
+    let one_plus_c = 1.0 + c;
+    if one_plus_c > ANTIPODAL_LIMIT {
+        let k = 2.0 / one_plus_c;
+        let r = s * k;
+        // ∂r/∂u = k·(T − (r/2)·dᵀ), T = [t1ᵀ; t2ᵀ]; ∂u/∂v = (I − u uᵀ)/|v|.
+        let half = r * 0.5;
+        let dr_du = Matrix2x3::from_rows(&[
+            (t1 - direction * half.x).transpose() * k,
+            (t2 - direction * half.y).transpose() * k,
+        ]);
+        let dr_du_u = dr_du * u;
+        let dr_dv = (dr_du - dr_du_u * u.transpose()) / len;
+        Some((r, dr_dv, angle))
+    } else {
+        let magnitude = 2.0 * ((2.0 - ANTIPODAL_LIMIT) / ANTIPODAL_LIMIT).sqrt();
+        let along = s.try_normalize(0.0).unwrap_or_else(Vector2::x);
+        Some((along * magnitude, Matrix2x3::zeros(), angle))
+    }
+}
+
+/// Evaluates the cost and linearises at `pose` (rotation given as a unit quaternion).
+/// Returns `None` when a point sits on its ray origin or the cost is not finite.
+fn linearize(
+    rotation: &UnitQuaternion<f64>,
+    position: &Vector3<f64>,
+    rays: &[Ray],
+    points: &[Vector3<f64>],
+    sigmas: Option<&[f64]>,
+    options: &RefineOptions,
+) -> Option<Linearization> {
+    let rig_from_world = rotation.to_rotation_matrix().into_inner().transpose();
+    let mut normal = Matrix6::zeros();
+    let mut gradient = Vector6::zeros();
+    let mut cost = 0.0;
+    let mut sum_sq_angle = 0.0;
+    for (i, (ray, point)) in rays.iter().zip(points).enumerate() {
+        let sigma = sigmas.map_or(options.sigma_rad, |s| s[i]);
+        let information = 1.0 / (sigma * sigma);
+        // Directions were validated non-zero; normalising here keeps the loop allocation-free.
+        let direction = ray.direction / ray.direction.norm();
+        let q = point - position;
+        let v = rig_from_world * q - ray.origin;
+        let (r, dr_dv, angle) = residual(&direction, &v)?;
+        let (rho, weight) = options.loss.evaluate(r.norm());
+        cost += information * rho;
+        sum_sq_angle += angle * angle;
+        // v = Rᵀ·exp(−δθ)·(q − δp) − o  ⇒  ∂v/∂δp = −Rᵀ,  ∂v/∂δθ = Rᵀ·[q]×.
+        // With B = ∂r/∂v·Rᵀ: J = [−B | rows (bₖ × q)ᵀ].
+        let b = dr_dv * rig_from_world;
+        let b0 = b.row(0).transpose();
+        let b1 = b.row(1).transpose();
+        let c0 = b0.cross(&q);
+        let c1 = b1.cross(&q);
+        let jacobian = SMatrix::<f64, 2, 6>::from_rows(&[
+            nalgebra::RowVector6::new(-b0.x, -b0.y, -b0.z, c0.x, c0.y, c0.z),
+            nalgebra::RowVector6::new(-b1.x, -b1.y, -b1.z, c1.x, c1.y, c1.z),
+        ]);
+        let w = weight * information;
+        normal += jacobian.tr_mul(&jacobian) * w;
+        gradient += jacobian.tr_mul(&r) * w;
+    }
+    if cost.is_finite() && sum_sq_angle.is_finite() {
+        Some(Linearization {
+            normal,
+            gradient,
+            cost,
+            sum_sq_angle,
+        })
+    } else {
+        None
+    }
+}
+
+/// Checks the inputs; returns the RMS range of the points from the initial rig position
+/// (metres), the scale that turns a position step into an angle.
+fn validate(
+    initial: &Pose,
+    rays: &[Ray],
+    points: &[Vector3<f64>],
+    sigmas: Option<&[f64]>,
+    options: &RefineOptions,
+) -> Result<f64, RefineError> {
+    let n_sigmas = sigmas.map_or(rays.len(), <[f64]>::len);
+    if rays.len() != points.len() || n_sigmas != rays.len() {
+        return Err(RefineError::LengthMismatch {
+            rays: rays.len(),
+            points: points.len(),
+            sigmas: n_sigmas,
+        });
+    }
+    if rays.len() < MIN_CORRESPONDENCES {
+        return Err(RefineError::TooFewCorrespondences(rays.len()));
+    }
+    if sigmas.is_none() && !(options.sigma_rad.is_finite() && options.sigma_rad > 0.0) {
+        return Err(RefineError::InvalidOptions(
+            "sigma_rad must be finite and positive",
+        ));
+    }
+    if !options.loss.is_valid() {
+        return Err(RefineError::InvalidOptions(
+            "the robust loss scale must be finite and positive",
+        ));
+    }
+    if !(options.step_tolerance_rad.is_finite() && options.step_tolerance_rad >= 0.0) {
+        return Err(RefineError::InvalidOptions(
+            "step_tolerance_rad must be finite and non-negative",
+        ));
+    }
+    let position = initial.translation.vector;
+    if !is_finite(&position) || initial.rotation.matrix().iter().any(|x| !x.is_finite()) {
+        return Err(RefineError::NonFiniteInitialPose);
+    }
+    let rig_from_world = initial.rotation.inverse();
+    let mut sum_sq_range = 0.0;
+    for (i, (ray, point)) in rays.iter().zip(points).enumerate() {
+        if !is_finite(&ray.origin) || !is_finite(&ray.direction) {
+            return Err(RefineError::NonFiniteRay(i));
+        }
+        if !is_finite(point) {
+            return Err(RefineError::NonFinitePoint(i));
+        }
+        let norm = ray.direction.norm();
+        if !(norm > crate::geometry::MIN_DIRECTION_NORM && norm.is_finite()) {
+            return Err(RefineError::ZeroDirection(i));
+        }
+        if let Some(s) = sigmas {
+            if !(s[i].is_finite() && s[i] > 0.0) {
+                return Err(RefineError::InvalidSigma {
+                    index: i,
+                    value: s[i],
+                });
+            }
+        }
+        let q = point - position;
+        let v = rig_from_world * q - ray.origin;
+        if !(v.norm() > MIN_POINT_DISTANCE_M) {
+            return Err(RefineError::PointAtRayOrigin(i));
+        }
+        sum_sq_range += q.norm_squared();
+    }
+    let rms_range = (sum_sq_range / rays.len() as f64).sqrt();
+    Ok(rms_range.max(MIN_POINT_DISTANCE_M))
+}
+
+/// The covariance `normal⁻¹`, or `None` when `normal` is numerically rank-deficient.
+///
+/// The matrix is first scaled to unit diagonal, `C = D^{-1/2}·N·D^{-1/2}`; its smallest
+/// eigenvalue (≤ 1) lies within a factor 6 of `1 / trace(C⁻¹)`, which is the reciprocal
+/// condition estimate compared to [`MIN_RECIPROCAL_CONDITION`].
+fn covariance_of(normal: &Matrix6<f64>) -> Option<Matrix6<f64>> {
+    let mut inv_sqrt_diag = Vector6::zeros();
+    for i in 0..6 {
+        let d = normal[(i, i)];
+        if !(d.is_finite() && d > 0.0) {
+            return None;
+        }
+        inv_sqrt_diag[i] = 1.0 / d.sqrt();
+    }
+    let scaled = Matrix6::from_fn(|i, j| normal[(i, j)] * inv_sqrt_diag[i] * inv_sqrt_diag[j]);
+    let inverse = Cholesky::new(scaled)?.inverse();
+    let trace = inverse.trace();
+    if !(trace.is_finite() && trace > 0.0 && 1.0 / trace >= MIN_RECIPROCAL_CONDITION) {
+        return None;
+    }
+    let covariance = Matrix6::from_fn(|i, j| inverse[(i, j)] * inv_sqrt_diag[i] * inv_sqrt_diag[j]);
+    covariance
+        .iter()
+        .all(|x| x.is_finite())
+        .then_some(covariance)
+}
+
+/// The damped Gauss–Newton step `−(N + λ·diag(N))⁻¹ g`, or `None` if the damped matrix is
+/// not positive definite.
+fn damped_step(lin: &Linearization, damping: f64) -> Option<Vector6<f64>> {
+    let max_diagonal = lin.normal.diagonal().max();
+    let floor = MIN_DAMPING_DIAGONAL_RATIO * max_diagonal;
+    let mut damped = lin.normal;
+    for i in 0..6 {
+        damped[(i, i)] += damping * lin.normal[(i, i)].max(floor);
+    }
+    let step = Cholesky::new(damped)?.solve(&(-lin.gradient));
+    step.iter().all(|x| x.is_finite()).then_some(step)
+}
+
+fn refine(
+    initial: &Pose,
+    rays: &[Ray],
+    points: &[Vector3<f64>],
+    sigmas: Option<&[f64]>,
+    options: &RefineOptions,
+) -> Result<RefinedPose, RefineError> {
+    let range_scale = validate(initial, rays, points, sigmas, options)?;
+    let mut rotation = UnitQuaternion::from_rotation_matrix(&initial.rotation);
+    let mut position = initial.translation.vector;
+    // Validation checked every point against its ray origin at this pose; only a
+    // non-finite cost (overflowing inputs) can fail here.
+    let mut lin = linearize(&rotation, &position, rays, points, sigmas, options)
+        .ok_or(RefineError::NonFiniteInitialPose)?;
+    let mut damping = INITIAL_DAMPING;
+    let mut iterations = 0;
+    let mut converged = false;
+    while iterations < options.max_iterations {
+        iterations += 1;
+        let Some(step) = damped_step(&lin, damping) else {
+            damping *= DAMPING_FACTOR;
+            if damping > MAX_DAMPING {
+                break;
+            }
+            continue;
+        };
+        let delta_p = Vector3::new(step[0], step[1], step[2]);
+        let delta_theta = Vector3::new(step[3], step[4], step[5]);
+        let small =
+            delta_theta.norm().max(delta_p.norm() / range_scale) <= options.step_tolerance_rad;
+        let mut candidate_rotation = UnitQuaternion::from_scaled_axis(delta_theta) * rotation;
+        candidate_rotation.renormalize_fast();
+        let candidate_position = position + delta_p;
+        match linearize(
+            &candidate_rotation,
+            &candidate_position,
+            rays,
+            points,
+            sigmas,
+            options,
+        ) {
+            Some(candidate) if candidate.cost <= lin.cost => {
+                rotation = candidate_rotation;
+                position = candidate_position;
+                lin = candidate;
+                damping = (damping / DAMPING_FACTOR).max(MIN_DAMPING);
+            }
+            _ if !small => {
+                damping *= DAMPING_FACTOR;
+                if damping > MAX_DAMPING {
+                    break;
+                }
+            }
+            _ => {}
+        }
+        if small {
+            converged = true;
+            break;
+        }
+    }
+    let covariance = covariance_of(&lin.normal).ok_or(RefineError::RankDeficient)?;
+    let rms_residual_rad = (lin.sum_sq_angle / rays.len() as f64).sqrt();
+    if !converged && !options.accept_unconverged {
+        return Err(RefineError::NoConvergence {
+            iterations,
+            rms_residual_rad,
+        });
+    }
+    let world_from_rig = Pose::from_parts(Translation3::from(position), Rotation3::from(rotation));
+    Ok(RefinedPose {
+        world_from_rig,
+        covariance,
+        iterations,
+        rms_residual_rad,
+        converged,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synthetic::{random_unit_vector, rng};
+    use rand::RngExt;
+
+    /// The residual and ∂r/∂v agree with central differences, including large angles.
+    #[test]
+    fn residual_jacobian_matches_finite_differences() {
+        let mut r = rng(11);
+        let h = 1e-6;
+        for _ in 0..500 {
+            let d = random_unit_vector(&mut r);
+            let angle = r.random_range(0.0..3.0);
+            let axis = d.cross(&random_unit_vector(&mut r)).normalize();
+            let v = Rotation3::from_scaled_axis(axis * angle) * d * r.random_range(0.5..50.0);
+            let (res, jac, theta) = residual(&d, &v).unwrap();
+            assert!((theta - angle).abs() < 1e-9);
+            assert!((res.norm() - 2.0 * (angle / 2.0).tan()).abs() < 1e-9 * (1.0 + res.norm()));
+            for k in 0..3 {
+                let mut e = Vector3::zeros();
+                e[k] = h * v.norm();
+                let plus = residual(&d, &(v + e)).unwrap().0;
+                let minus = residual(&d, &(v - e)).unwrap().0;
+                let numeric = (plus - minus) / (2.0 * h * v.norm());
+                let analytic = jac.column(k);
+                assert!(
+                    (numeric - analytic).norm() < 1e-6 * (1.0 + analytic.norm()),
+                    "column {k}: {numeric} vs {analytic}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn losses_have_consistent_weights() {
+        // ω(x) = ρ'(x)/x, checked by central differences.
+        for loss in [
+            RobustLoss::None,
+            RobustLoss::Huber { scale_rad: 0.01 },
+            RobustLoss::Cauchy { scale_rad: 0.01 },
+        ] {
+            for x in [1e-4, 5e-3, 0.02, 0.3] {
+                let h = 1e-7;
+                let d = (loss.evaluate(x + h).0 - loss.evaluate(x - h).0) / (2.0 * h);
+                let w = loss.evaluate(x).1;
+                assert!(
+                    (d / x - w).abs() < 1e-5,
+                    "{loss:?} at {x}: {} vs {w}",
+                    d / x
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn antipodal_residual_is_finite() {
+        let d = random_unit_vector(&mut rng(3));
+        let (res, jac, theta) = residual(&d, &(-d * 5.0)).unwrap();
+        assert!(res.iter().all(|x| x.is_finite()) && res.norm() > 1e4);
+        assert!(jac.iter().all(|x| *x == 0.0));
+        assert!((theta - std::f64::consts::PI).abs() < 1e-12);
+    }
+}
