@@ -45,12 +45,16 @@
 //!   loss and IRLS weights as in B. Triggs et al., *Bundle adjustment — a modern synthesis*
 //!   (2000), §3.
 
+use crate::geometry::MIN_DIRECTION_NORM;
 use crate::geometry::{Pose, Ray, is_finite};
 use crate::synthetic::tangent_basis;
 use nalgebra::{
-    Cholesky, Matrix2x3, Matrix6, Rotation3, SMatrix, Translation3, UnitQuaternion, Vector2,
-    Vector3, Vector6,
+    Cholesky, Matrix2x3, Matrix3, Matrix6, Rotation3, RowVector6, SMatrix, Translation3,
+    UnitQuaternion, Vector2, Vector3, Vector6,
 };
+
+/// A 2×6 Jacobian of one angular residual with respect to `[δp, δθ]`.
+pub type Matrix2x6 = SMatrix<f64, 2, 6>;
 use thiserror::Error;
 
 /// Angular size of one pixel of a Ladybug2 camera head (radians), the figure of the Visual
@@ -396,6 +400,78 @@ fn residual(
     }
 }
 
+/// Residual, Jacobian (2×6, w.r.t. `[δp, δθ]`) and exact angle of one observation, given
+/// `rig_from_world = Rᵀ` and the rig position; `None` if the point is on the ray origin.
+#[inline]
+fn observation(
+    rig_from_world: &Matrix3<f64>,
+    position: &Vector3<f64>,
+    ray: &Ray,
+    point: &Vector3<f64>,
+) -> Option<(Vector2<f64>, Matrix2x6, f64)> {
+    let norm = ray.direction.norm();
+    if !(norm > MIN_DIRECTION_NORM && norm.is_finite()) {
+        return None;
+    }
+    let direction = ray.direction / norm;
+    let q = point - position;
+    let v = rig_from_world * q - ray.origin;
+    let (r, dr_dv, angle) = residual(&direction, &v)?;
+    // v = Rᵀ·exp(−δθ)·(q − δp) − o  ⇒  ∂v/∂δp = −Rᵀ,  ∂v/∂δθ = Rᵀ·[q]×.
+    // With B = ∂r/∂v·Rᵀ (rows bₖᵀ): bₖᵀ·[q]×·δθ = (bₖ × q)·δθ, so J = [−B | rows (bₖ × q)ᵀ].
+    let b = dr_dv * rig_from_world;
+    let b0 = b.row(0).transpose();
+    let b1 = b.row(1).transpose();
+    let c0 = b0.cross(&q);
+    let c1 = b1.cross(&q);
+    let jacobian = Matrix2x6::from_rows(&[
+        RowVector6::new(-b0.x, -b0.y, -b0.z, c0.x, c0.y, c0.z),
+        RowVector6::new(-b1.x, -b1.y, -b1.z, c1.x, c1.y, c1.z),
+    ]);
+    Some((r, jacobian, angle))
+}
+
+/// The angular residual of one observation at a pose and its Jacobian with respect to the
+/// perturbation `[δp, δθ]` of `world_from_rig = (exp(δθ)·R, p + δp)`.
+///
+/// The residual is `r = 2 s / (1 + c)` in the tangent basis
+/// [`crate::synthetic::tangent_basis`] of the observed direction (see the
+/// [module documentation](self)); its norm is `2 tan(θ/2)`, θ the angle between the
+/// observed and predicted directions. Returns `None` when the point is within
+/// [`MIN_POINT_DISTANCE_M`] of the ray origin, the direction is zero, or a value is not
+/// finite.
+///
+/// # Units
+/// Residual in radians (to first order); Jacobian in rad/m (first three columns) and
+/// rad/rad (last three).
+///
+/// # Example
+/// ```
+/// use nalgebra::Vector3;
+/// use vgps::geometry::{Pose, Ray};
+/// use vgps::solvers::refine_pose::angular_residual;
+/// // Rig at the origin looking along +x; the point is 1 mrad off the ray, sideways.
+/// let ray = Ray::try_new(Vector3::zeros(), Vector3::x()).unwrap();
+/// let (r, j) = angular_residual(&Pose::identity(), &ray, &Vector3::new(10.0, 0.01, 0.0)).unwrap();
+/// assert!((r.norm() - 1e-3).abs() < 1e-9);
+/// // Moving the rig 1 cm along +y cancels it: the residual derivative is −1/range per metre.
+/// assert!(((j * nalgebra::Vector6::new(0.0, 0.01, 0.0, 0.0, 0.0, 0.0)).norm() - 1e-3).abs() < 1e-8);
+/// ```
+pub fn angular_residual(
+    world_from_rig: &Pose,
+    ray: &Ray,
+    point_in_world: &Vector3<f64>,
+) -> Option<(Vector2<f64>, Matrix2x6)> {
+    let rig_from_world = world_from_rig.rotation.matrix().transpose();
+    let (r, j, _) = observation(
+        &rig_from_world,
+        &world_from_rig.translation.vector,
+        ray,
+        point_in_world,
+    )?;
+    (r.iter().all(|x| x.is_finite()) && j.iter().all(|x| x.is_finite())).then_some((r, j))
+}
+
 /// Evaluates the cost and linearises at `pose` (rotation given as a unit quaternion).
 /// Returns `None` when a point sits on its ray origin or the cost is not finite.
 fn linearize(
@@ -414,25 +490,10 @@ fn linearize(
     for (i, (ray, point)) in rays.iter().zip(points).enumerate() {
         let sigma = sigmas.map_or(options.sigma_rad, |s| s[i]);
         let information = 1.0 / (sigma * sigma);
-        // Directions were validated non-zero; normalising here keeps the loop allocation-free.
-        let direction = ray.direction / ray.direction.norm();
-        let q = point - position;
-        let v = rig_from_world * q - ray.origin;
-        let (r, dr_dv, angle) = residual(&direction, &v)?;
+        let (r, jacobian, angle) = observation(&rig_from_world, position, ray, point)?;
         let (rho, weight) = options.loss.evaluate(r.norm());
         cost += information * rho;
         sum_sq_angle += angle * angle;
-        // v = Rᵀ·exp(−δθ)·(q − δp) − o  ⇒  ∂v/∂δp = −Rᵀ,  ∂v/∂δθ = Rᵀ·[q]×.
-        // With B = ∂r/∂v·Rᵀ: J = [−B | rows (bₖ × q)ᵀ].
-        let b = dr_dv * rig_from_world;
-        let b0 = b.row(0).transpose();
-        let b1 = b.row(1).transpose();
-        let c0 = b0.cross(&q);
-        let c1 = b1.cross(&q);
-        let jacobian = SMatrix::<f64, 2, 6>::from_rows(&[
-            nalgebra::RowVector6::new(-b0.x, -b0.y, -b0.z, c0.x, c0.y, c0.z),
-            nalgebra::RowVector6::new(-b1.x, -b1.y, -b1.z, c1.x, c1.y, c1.z),
-        ]);
         let w = weight * information;
         normal += jacobian.tr_mul(&jacobian) * w;
         gradient += jacobian.tr_mul(&r) * w;
@@ -498,7 +559,7 @@ fn validate(
             return Err(RefineError::NonFinitePoint(i));
         }
         let norm = ray.direction.norm();
-        if !(norm > crate::geometry::MIN_DIRECTION_NORM && norm.is_finite()) {
+        if !(norm > MIN_DIRECTION_NORM && norm.is_finite()) {
             return Err(RefineError::ZeroDirection(i));
         }
         if let Some(s) = sigmas {

@@ -308,8 +308,33 @@ pub fn perturb_pose<R: Rng + ?Sized>(
 /// `[δp, δθ]` (world frame) with `estimate = (exp(δθ)·R_truth, p_truth + δp)`.
 pub fn pose_error_vector(estimate: &Pose, truth: &Pose) -> Vector6<f64> {
     let dp = estimate.translation.vector - truth.translation.vector;
-    let dtheta = (estimate.rotation * truth.rotation.inverse()).scaled_axis();
+    let dtheta = rotation_log(&(estimate.rotation * truth.rotation.inverse()));
     Vector6::new(dp.x, dp.y, dp.z, dtheta.x, dtheta.y, dtheta.z)
+}
+
+/// The rotation vector (axis × angle, radians) of a rotation, accurate to rounding at small
+/// angles: the angle is `atan2(|vee(M − Mᵀ)|/2, (tr M − 1)/2)`, not an `acos` of the trace
+/// (which loses half the digits, ~1e-8 rad, near zero, as `Rotation3::angle` does).
+pub fn rotation_log(rotation: &Rotation3<f64>) -> Vector3<f64> {
+    let m = rotation.matrix();
+    let sin_axis = Vector3::new(
+        m[(2, 1)] - m[(1, 2)],
+        m[(0, 2)] - m[(2, 0)],
+        m[(1, 0)] - m[(0, 1)],
+    ) * 0.5;
+    let sin = sin_axis.norm();
+    let cos = 0.5 * (m.trace() - 1.0);
+    let angle = sin.atan2(cos);
+    if sin == 0.0 && cos > 0.0 {
+        return Vector3::zeros();
+    }
+    if angle < 3.0 {
+        // Away from π the skew part gives the axis with full precision, and
+        // atan2(sin, cos)/sin is accurate down to the smallest angles.
+        return sin_axis * (angle / sin);
+    }
+    // Near π the skew part vanishes: nalgebra's axis from the symmetric part.
+    rotation.scaled_axis()
 }
 
 /// Normalised estimation error squared `eᵀ Σ⁻¹ e` of an error vector against its
@@ -447,7 +472,16 @@ mod tests {
             Translation3::from(truth.translation.vector + e.fixed_rows::<3>(0)),
             Rotation3::from_scaled_axis(e.fixed_rows::<3>(3).into_owned()) * truth.rotation,
         );
-        assert!((pose_error_vector(&moved, &truth) - e).norm() < 1e-12);
+        assert!((pose_error_vector(&moved, &truth) - e).norm() < 1e-15);
+        for angle in [1e-13, 1e-9, 1e-4, 1.0, 2.9, 3.1] {
+            let axis = crate::synthetic::random_unit_vector(&mut r);
+            let log = rotation_log(&Rotation3::from_scaled_axis(axis * angle));
+            assert!(
+                (log - axis * angle).norm()
+                    < 1e-15 * (1.0 + angle) + 1e-9 * (angle > 3.0) as u8 as f64,
+                "{angle}"
+            );
+        }
         let p = perturb_pose(&mut r, &truth, 1.0, 0.1);
         let (dp, dr) = crate::synthetic::pose_error(&p, &truth);
         assert!((dp - 1.0).abs() < 1e-12 && (dr - 0.1).abs() < 1e-12);
