@@ -16,19 +16,23 @@
 //!
 //! # Residual
 //! Let `(t₁, t₂, dᵢ)` be the right-handed basis of [`crate::synthetic::tangent_basis`],
-//! `sᵢ = (t₁·uᵢ, t₂·uᵢ)` and `cᵢ = dᵢ·uᵢ`. The residual is the stereographic projection of
-//! `uᵢ` from `−dᵢ` onto the tangent plane of `dᵢ`:
+//! `sᵢ = (t₁·uᵢ, t₂·uᵢ)` (so `|sᵢ| = sin θᵢ`) and `cᵢ = dᵢ·uᵢ = cos θᵢ`, with `θᵢ` the angle
+//! between the observed and predicted directions. The residual is the logarithm map of the
+//! sphere at `dᵢ`, expressed in that basis:
 //!
 //! ```text
-//! rᵢ = 2 sᵢ / (1 + cᵢ),      |rᵢ| = 2 tan(θᵢ / 2) = θᵢ + θᵢ³/12 + …
+//! θᵢ = atan2(|sᵢ|, cᵢ),      rᵢ = θᵢ · sᵢ / |sᵢ|,      |rᵢ| = θᵢ exactly.
 //! ```
 //!
-//! where `θᵢ` is the angle between `uᵢ` and `dᵢ`. It is smooth everywhere except at the
-//! antipode of `dᵢ`, its magnitude is the angle to first order and it grows monotonically
-//! with the angle on all of `[0, π)`, so a gross outlier always has a large residual (the
-//! plain tangent-plane projection `sᵢ`, of magnitude `sin θᵢ`, would make a bearing pointing
-//! backwards look like a perfect fit). Within [`ANTIPODAL_LIMIT`] of the antipode the
-//! residual is frozen at its boundary magnitude with a zero Jacobian.
+//! It is smooth on the whole sphere except the antipode of `dᵢ`, equal to the tangent-plane
+//! projection `sᵢ` to first order, and its magnitude is the angle itself on `[0, π]`. That
+//! last property is what makes the robust losses work: the cost `ρ(θᵢ)` has a gradient of
+//! magnitude `ρ'(θᵢ)` per unit angle, bounded for Huber and vanishing for Cauchy. (The
+//! plain projection `sᵢ`, of magnitude `sin θᵢ`, makes a bearing pointing backwards look
+//! like a perfect fit; the stereographic `2sᵢ/(1 + cᵢ)`, of magnitude `2 tan(θᵢ/2)`, has a
+//! derivative `sec²(θᵢ/2)` that hands far outliers an unbounded influence.) Within
+//! [`ANTIPODAL_MARGIN_RAD`] of the antipode, where the residual's direction is undefined,
+//! the tangential part of its Jacobian is dropped.
 //!
 //! # Parameterisation and covariance
 //! The update is `world_from_rig ← (exp(δθ)·R, p + δp)` with the state ordered `[δp, δθ]`
@@ -82,10 +86,21 @@ pub const DEFAULT_STEP_TOLERANCE_RAD: f64 = 1e-10;
 /// an input error at the initial pose and a rejected step during the iterations.
 pub const MIN_POINT_DISTANCE_M: f64 = 1e-6;
 
-/// Where `1 + cos θ` falls below this (θ within about 1.4e-4 rad of π) the residual is held
-/// at its boundary magnitude `2·√((2 − L)/L)` with a zero Jacobian: the direction to the
-/// antipode of a bearing is undefined.
-pub const ANTIPODAL_LIMIT: f64 = 1e-8;
+/// Within this angle of π (the antipode of the observed bearing) the tangential part of the
+/// residual Jacobian, which grows as `θ / sin θ`, is dropped: the direction of the residual
+/// is undefined at the antipode. The gradient of the cost is unaffected (it depends on the
+/// angle only), so only the Gauss–Newton curvature of such a gross outlier changes.
+pub const ANTIPODAL_MARGIN_RAD: f64 = 1e-2;
+
+/// Where `sin θ` is below this with `θ` near π, the direction of growth of θ is lost to
+/// rounding (its error is ~1e-16 / sin θ): the Jacobian is zero.
+const ANTIPODE_SIN_TOLERANCE: f64 = 1e-8;
+/// Below this angle the residual Jacobian is written as `φ·T + φ'·s·dᵀ` (no division by the
+/// residual's direction); above it as a radial plus a tangential part.
+const SMALL_ANGLE_RAD: f64 = 0.5;
+/// Below this angle `θ/sin θ` and its derivative use their Taylor series (truncation error
+/// below 1e-12 relative; the closed form would lose digits to cancellation).
+const SERIES_ANGLE_RAD: f64 = 1e-3;
 
 /// Smallest reciprocal condition number (of the normal matrix scaled to unit diagonal)
 /// accepted at the solution; below it the geometry does not determine the pose (e.g. all
@@ -100,6 +115,9 @@ const MIN_DAMPING: f64 = 1e-12;
 const MAX_DAMPING: f64 = 1e12;
 /// Factor by which the damping shrinks after an accepted step and grows after a rejection.
 const DAMPING_FACTOR: f64 = 10.0;
+/// Relative change of the cost treated as rounding noise when accepting a step (the cost is
+/// a sum of many terms; near the minimum a good step can look like a 1e-16 increase).
+const COST_ROUNDING: f64 = 1e-13;
 /// Floor of a diagonal entry used for damping, relative to the largest diagonal entry, so a
 /// zero diagonal entry still gets damped.
 const MIN_DAMPING_DIAGONAL_RATIO: f64 = 1e-12;
@@ -128,22 +146,33 @@ pub enum RobustLoss {
 }
 
 impl RobustLoss {
-    /// The loss `ρ(x)` and the IRLS weight `ω(x) = ρ'(x)/x` of a residual magnitude `x ≥ 0`.
+    /// The loss `ρ(x)`, the IRLS weight `ω(x) = ρ'(x)/x` and the clamped curvature
+    /// `max(ρ''(x), 0)` of a residual magnitude `x ≥ 0`.
     #[inline]
-    fn evaluate(&self, x: f64) -> (f64, f64) {
+    fn evaluate(&self, x: f64) -> (f64, f64, f64) {
         match *self {
-            Self::None => (0.5 * x * x, 1.0),
+            Self::None => (0.5 * x * x, 1.0, 1.0),
             Self::Huber { scale_rad: k } => {
                 if x <= k {
-                    (0.5 * x * x, 1.0)
+                    (0.5 * x * x, 1.0, 1.0)
                 } else {
-                    (k * (x - 0.5 * k), k / x)
+                    (k * (x - 0.5 * k), k / x, 0.0)
                 }
             }
             Self::Cauchy { scale_rad: k } => {
                 let z = (x / k) * (x / k);
-                (0.5 * k * k * z.ln_1p(), 1.0 / (1.0 + z))
+                let weight = 1.0 / (1.0 + z);
+                let curvature = ((1.0 - z) * weight * weight).max(0.0);
+                (0.5 * k * k * z.ln_1p(), weight, curvature)
             }
+        }
+    }
+
+    /// The scale of the loss (radians), `None` for least squares.
+    fn scale_rad(&self) -> Option<f64> {
+        match *self {
+            Self::None => None,
+            Self::Huber { scale_rad } | Self::Cauchy { scale_rad } => Some(scale_rad),
         }
     }
 
@@ -352,8 +381,12 @@ pub fn refine_pose_with_sigmas(
 
 /// The cost, gradient and Gauss–Newton normal matrix at one pose.
 struct Linearization {
-    /// `Σ ωᵢ Jᵢᵀ Jᵢ / σᵢ²`.
+    /// `Σ ωᵢ Jᵢᵀ Jᵢ / σᵢ²`: the information matrix whose inverse is the covariance.
     normal: Matrix6<f64>,
+    /// The Gauss–Newton matrix of the robust cost used for the steps:
+    /// `Σ Jᵢᵀ (ωᵢ (I − r̂r̂ᵀ) + max(ρ''ᵢ, 0) r̂r̂ᵀ) Jᵢ / σᵢ²` (equal to `normal` without a robust
+    /// loss).
+    step_normal: Matrix6<f64>,
     /// `Σ ωᵢ Jᵢᵀ rᵢ / σᵢ²`.
     gradient: Vector6<f64>,
     /// `Σ ρ(|rᵢ|) / σᵢ²`.
@@ -365,7 +398,7 @@ struct Linearization {
 /// The residual of one observation and its Jacobian with respect to `vᵢ` (rig frame), or
 /// `None` when `vᵢ` is too short (the point sits on the ray origin) or not finite.
 ///
-/// Returns `(r, ∂r/∂v, θ)`; the Jacobian is zero near the antipode.
+/// Returns `(r, ∂r/∂v, θ)` with `r = θ·ŝ`, the log map of `u` at `d` in the tangent basis.
 #[inline]
 fn residual(
     direction: &Vector3<f64>,
@@ -377,27 +410,43 @@ fn residual(
     }
     let u = v / len;
     let (t1, t2) = tangent_basis(direction);
-    let s = Vector2::new(t1.dot(&u), t2.dot(&u));
+    let tangent = Matrix2x3::from_rows(&[t1.transpose(), t2.transpose()]);
+    let s = tangent * u;
+    let sin = s.norm();
     let c = direction.dot(&u);
-    let angle = s.norm().atan2(c);
-    let one_plus_c = 1.0 + c;
-    if one_plus_c > ANTIPODAL_LIMIT {
-        let k = 2.0 / one_plus_c;
-        let r = s * k;
-        // ∂r/∂u = k·(T − (r/2)·dᵀ), T = [t1ᵀ; t2ᵀ]; ∂u/∂v = (I − u uᵀ)/|v|.
-        let half = r * 0.5;
-        let dr_du = Matrix2x3::from_rows(&[
-            (t1 - direction * half.x).transpose() * k,
-            (t2 - direction * half.y).transpose() * k,
-        ]);
-        let dr_du_u = dr_du * u;
-        let dr_dv = (dr_du - dr_du_u * u.transpose()) / len;
-        Some((r, dr_dv, angle))
+    let angle = sin.atan2(c);
+    let (r, dr_du) = if angle <= SMALL_ANGLE_RAD {
+        // r = φ(c)·s with φ = θ/sin θ: ∂r/∂u = φ·T + φ'(c)·s·dᵀ,
+        // φ'(c) = −(sin θ − θ cos θ)/sin³ θ = −(1/3 + 2θ²/15 + …).
+        let (phi, dphi_dc) = if angle < SERIES_ANGLE_RAD {
+            let a2 = angle * angle;
+            (1.0 + a2 / 6.0, -(1.0 / 3.0 + 2.0 * a2 / 15.0))
+        } else {
+            (angle / sin, -(sin - angle * c) / (sin * sin * sin))
+        };
+        (s * phi, tangent * phi + s * direction.transpose() * dphi_dc)
+    } else if sin > ANTIPODE_SIN_TOLERANCE {
+        // r = θ·ŝ: ∂r/∂u = ŝ·eᵀ + (θ/sin θ)·(I − ŝŝᵀ)·T, with e = (c·u − d)/sin θ the unit
+        // direction in which θ grows. The tangential part (second term) is dropped within
+        // ANTIPODAL_MARGIN_RAD of π, where θ/sin θ diverges.
+        let s_hat = s / sin;
+        let grow = (u * c - direction) / sin;
+        let mut dr_du = s_hat * grow.transpose();
+        if angle < std::f64::consts::PI - ANTIPODAL_MARGIN_RAD {
+            let perpendicular = nalgebra::Matrix2::identity() - s_hat * s_hat.transpose();
+            dr_du += perpendicular * tangent * (angle / sin);
+        }
+        (s_hat * angle, dr_du)
     } else {
-        let magnitude = 2.0 * ((2.0 - ANTIPODAL_LIMIT) / ANTIPODAL_LIMIT).sqrt();
+        // At the antipode (to rounding) the residual direction is undefined and θ = π is a
+        // maximum: no useful derivative.
         let along = s.try_normalize(0.0).unwrap_or_else(Vector2::x);
-        Some((along * magnitude, Matrix2x3::zeros(), angle))
-    }
+        (along * angle, Matrix2x3::zeros())
+    };
+    // ∂u/∂v = (I − u uᵀ)/|v|.
+    let dr_du_u = dr_du * u;
+    let dr_dv = (dr_du - dr_du_u * u.transpose()) / len;
+    Some((r, dr_dv, angle))
 }
 
 /// Residual, Jacobian (2×6, w.r.t. `[δp, δθ]`) and exact angle of one observation, given
@@ -434,15 +483,14 @@ fn observation(
 /// The angular residual of one observation at a pose and its Jacobian with respect to the
 /// perturbation `[δp, δθ]` of `world_from_rig = (exp(δθ)·R, p + δp)`.
 ///
-/// The residual is `r = 2 s / (1 + c)` in the tangent basis
-/// [`crate::synthetic::tangent_basis`] of the observed direction (see the
-/// [module documentation](self)); its norm is `2 tan(θ/2)`, θ the angle between the
-/// observed and predicted directions. Returns `None` when the point is within
+/// The residual is `r = θ·s/|s|` in the tangent basis [`crate::synthetic::tangent_basis`]
+/// of the observed direction (see the [module documentation](self)); its norm is `θ`, the
+/// angle between the observed and predicted directions. Returns `None` when the point is within
 /// [`MIN_POINT_DISTANCE_M`] of the ray origin, the direction is zero, or a value is not
 /// finite.
 ///
 /// # Units
-/// Residual in radians (to first order); Jacobian in rad/m (first three columns) and
+/// Residual in radians; Jacobian in rad/m (first three columns) and
 /// rad/rad (last three).
 ///
 /// # Example
@@ -484,6 +532,7 @@ fn linearize(
 ) -> Option<Linearization> {
     let rig_from_world = rotation.to_rotation_matrix().into_inner().transpose();
     let mut normal = Matrix6::zeros();
+    let mut step_normal = Matrix6::zeros();
     let mut gradient = Vector6::zeros();
     let mut cost = 0.0;
     let mut sum_sq_angle = 0.0;
@@ -491,16 +540,28 @@ fn linearize(
         let sigma = sigmas.map_or(options.sigma_rad, |s| s[i]);
         let information = 1.0 / (sigma * sigma);
         let (r, jacobian, angle) = observation(&rig_from_world, position, ray, point)?;
-        let (rho, weight) = options.loss.evaluate(r.norm());
+        let x = r.norm();
+        let (rho, weight, curvature) = options.loss.evaluate(x);
         cost += information * rho;
         sum_sq_angle += angle * angle;
         let w = weight * information;
-        normal += jacobian.tr_mul(&jacobian) * w;
+        let jtj = jacobian.tr_mul(&jacobian);
+        normal += jtj * w;
         gradient += jacobian.tr_mul(&r) * w;
+        // Second-order correction of the robust loss along the residual: the Hessian of
+        // ρ(|r|) w.r.t. r is ω·(I − r̂r̂ᵀ) + ρ''·r̂r̂ᵀ. IRLS alone (ρ'' replaced by ω)
+        // converges only linearly once residuals sit beyond the loss scale.
+        let correction = (curvature - weight) * information;
+        if x > 0.0 && correction != 0.0 {
+            let jr = jacobian.tr_mul(&(r / x));
+            step_normal += jr * jr.transpose() * correction;
+        }
     }
+    step_normal += normal;
     if cost.is_finite() && sum_sq_angle.is_finite() {
         Some(Linearization {
             normal,
+            step_normal,
             gradient,
             cost,
             sum_sq_angle,
@@ -608,12 +669,19 @@ fn covariance_of(normal: &Matrix6<f64>) -> Option<Matrix6<f64>> {
         .then_some(covariance)
 }
 
-/// The damped Gauss–Newton step `−(N + λ·diag(N))⁻¹ g`, or `None` if the damped matrix is
-/// not positive definite.
-fn damped_step(lin: &Linearization, damping: f64) -> Option<Vector6<f64>> {
+/// The damped Gauss–Newton step `−(M + λ·diag(N))⁻¹ g`, with `M` the IRLS matrix `N` or,
+/// with `second_order`, the curvature-corrected one; `None` if the damped matrix is not
+/// positive definite.
+fn damped_step(lin: &Linearization, damping: f64, second_order: bool) -> Option<Vector6<f64>> {
+    // Damping on the diagonal of the (positive definite) information matrix: the corrected
+    // matrix may have lost curvature along residuals beyond the loss scale.
     let max_diagonal = lin.normal.diagonal().max();
     let floor = MIN_DAMPING_DIAGONAL_RATIO * max_diagonal;
-    let mut damped = lin.normal;
+    let mut damped = if second_order {
+        lin.step_normal
+    } else {
+        lin.normal
+    };
     for i in 0..6 {
         damped[(i, i)] += damping * lin.normal[(i, i)].max(floor);
     }
@@ -638,9 +706,16 @@ fn refine(
     let mut damping = INITIAL_DAMPING;
     let mut iterations = 0;
     let mut converged = false;
+    let mut moved = false;
+    // Robust losses start with IRLS steps (the set of residuals beyond the loss scale is
+    // still changing, and the corrected matrix can be nearly singular far from the
+    // solution) and switch to the curvature-corrected matrix once an accepted step changes
+    // the residuals by less than the loss scale.
+    let switch_below = options.loss.scale_rad().unwrap_or(0.0);
+    let mut second_order = false;
     while iterations < options.max_iterations {
         iterations += 1;
-        let Some(step) = damped_step(&lin, damping) else {
+        let Some(step) = damped_step(&lin, damping, second_order) else {
             damping *= DAMPING_FACTOR;
             if damping > MAX_DAMPING {
                 break;
@@ -649,8 +724,8 @@ fn refine(
         };
         let delta_p = Vector3::new(step[0], step[1], step[2]);
         let delta_theta = Vector3::new(step[3], step[4], step[5]);
-        let small =
-            delta_theta.norm().max(delta_p.norm() / range_scale) <= options.step_tolerance_rad;
+        let step_rad = delta_theta.norm().max(delta_p.norm() / range_scale);
+        let small = step_rad <= options.step_tolerance_rad;
         let mut candidate_rotation = UnitQuaternion::from_scaled_axis(delta_theta) * rotation;
         candidate_rotation.renormalize_fast();
         let candidate_position = position + delta_p;
@@ -662,10 +737,13 @@ fn refine(
             sigmas,
             options,
         ) {
-            Some(candidate) if candidate.cost <= lin.cost => {
+            // Accept any step that does not raise the cost beyond its rounding error.
+            Some(candidate) if candidate.cost <= lin.cost * (1.0 + COST_ROUNDING) => {
                 rotation = candidate_rotation;
                 position = candidate_position;
                 lin = candidate;
+                moved = true;
+                second_order |= step_rad < switch_below;
                 damping = (damping / DAMPING_FACTOR).max(MIN_DAMPING);
             }
             _ if !small => {
@@ -689,7 +767,11 @@ fn refine(
             rms_residual_rad,
         });
     }
-    let world_from_rig = Pose::from_parts(Translation3::from(position), Rotation3::from(rotation));
+    let world_from_rig = if moved {
+        Pose::from_parts(Translation3::from(position), Rotation3::from(rotation))
+    } else {
+        *initial
+    };
     Ok(RefinedPose {
         world_from_rig,
         covariance,
@@ -712,12 +794,14 @@ mod tests {
         let h = 1e-6;
         for _ in 0..500 {
             let d = random_unit_vector(&mut r);
-            let angle = r.random_range(0.0..3.0);
+            // Small angles (series), the closed form, the radial/tangential form.
+            let angle =
+                [1e-5, 5e-4, 2e-3, 0.3, 1.0, 3.0][r.random_range(0..6)] * r.random_range(0.5..1.0);
             let axis = d.cross(&random_unit_vector(&mut r)).normalize();
             let v = Rotation3::from_scaled_axis(axis * angle) * d * r.random_range(0.5..50.0);
             let (res, jac, theta) = residual(&d, &v).unwrap();
             assert!((theta - angle).abs() < 1e-9);
-            assert!((res.norm() - 2.0 * (angle / 2.0).tan()).abs() < 1e-9 * (1.0 + res.norm()));
+            assert!((res.norm() - angle).abs() < 1e-9);
             for k in 0..3 {
                 let mut e = Vector3::zeros();
                 e[k] = h * v.norm();
@@ -758,8 +842,16 @@ mod tests {
     fn antipodal_residual_is_finite() {
         let d = random_unit_vector(&mut rng(3));
         let (res, jac, theta) = residual(&d, &(-d * 5.0)).unwrap();
-        assert!(res.iter().all(|x| x.is_finite()) && res.norm() > 1e4);
+        assert!((res.norm() - std::f64::consts::PI).abs() < 1e-12);
         assert!(jac.iter().all(|x| *x == 0.0));
         assert!((theta - std::f64::consts::PI).abs() < 1e-12);
+        // Just inside the margin: finite, radial part only (unit gradient of θ).
+        let (t1, _) = tangent_basis(&d);
+        let near = -d + t1 * 1e-3;
+        let (res, jac, theta) = residual(&d, &near).unwrap();
+        assert!(res.iter().chain(jac.iter()).all(|x| x.is_finite()));
+        assert!((res.norm() - theta).abs() < 1e-15);
+        let gradient_of_theta = jac.transpose() * (res / res.norm()) * near.norm();
+        assert!((gradient_of_theta.norm() - 1.0).abs() < 1e-6);
     }
 }
