@@ -47,7 +47,7 @@
 //!   Levenberg–Marquardt, covariance of the estimate).
 //! - P. J. Huber (1964), *Robust estimation of a location parameter*; the Cauchy (Lorentzian)
 //!   loss and IRLS weights as in B. Triggs et al., *Bundle adjustment — a modern synthesis*
-//!   (2000), §3.
+//!   (2000): robust cost models and the second-order (robustified Gauss–Newton) correction.
 
 use crate::geometry::MIN_DIRECTION_NORM;
 use crate::geometry::{Pose, Ray, is_finite};
@@ -125,7 +125,9 @@ const MIN_DAMPING_DIAGONAL_RATIO: f64 = 1e-12;
 /// Robust loss applied to the angular residual magnitude `x = |rᵢ|` (radians).
 ///
 /// The solver minimises `Σᵢ ρ(xᵢ)/σᵢ²` by iteratively reweighted Gauss–Newton with the
-/// weights `ω(x) = ρ'(x)/x`.
+/// weights `ω(x) = ρ'(x)/x`; once the steps are smaller than the loss scale it switches to
+/// the curvature-corrected matrix (`ρ''` along each residual, clamped at zero) for
+/// quadratic final convergence. See `docs/refine_pose.md`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum RobustLoss {
     /// Least squares: `ρ(x) = x²/2`, `ω = 1`.
@@ -623,17 +625,18 @@ fn validate(
         if !(norm > MIN_DIRECTION_NORM && norm.is_finite()) {
             return Err(RefineError::ZeroDirection(i));
         }
-        if let Some(s) = sigmas {
-            if !(s[i].is_finite() && s[i] > 0.0) {
-                return Err(RefineError::InvalidSigma {
-                    index: i,
-                    value: s[i],
-                });
-            }
+        if let Some(s) = sigmas
+            && !(s[i].is_finite() && s[i] > 0.0)
+        {
+            return Err(RefineError::InvalidSigma {
+                index: i,
+                value: s[i],
+            });
         }
         let q = point - position;
         let v = rig_from_world * q - ray.origin;
-        if !(v.norm() > MIN_POINT_DISTANCE_M) {
+        // Written to also reject a NaN length.
+        if v.norm().partial_cmp(&MIN_POINT_DISTANCE_M) != Some(std::cmp::Ordering::Greater) {
             return Err(RefineError::PointAtRayOrigin(i));
         }
         sum_sq_range += q.norm_squared();
