@@ -95,6 +95,9 @@ pub const ANTIPODAL_MARGIN_RAD: f64 = 1e-2;
 /// Where `sin θ` is below this with `θ` near π, the direction of growth of θ is lost to
 /// rounding (its error is ~1e-16 / sin θ): the Jacobian is zero.
 const ANTIPODE_SIN_TOLERANCE: f64 = 1e-8;
+/// Below this `sin θ` (with `cos θ > 0`) the angle is the series of `asin` to the 7th
+/// power, exact to rounding, instead of `atan2`.
+const ASIN_SERIES_LIMIT: f64 = 1e-2;
 /// Below this angle the residual Jacobian is written as `φ·T + φ'·s·dᵀ` (no division by the
 /// residual's direction); above it as a radial plus a tangential part.
 const SMALL_ANGLE_RAD: f64 = 0.5;
@@ -416,7 +419,13 @@ fn residual(
     let s = tangent * u;
     let sin = s.norm();
     let c = direction.dot(&u);
-    let angle = sin.atan2(c);
+    let angle = if c > 0.0 && sin < ASIN_SERIES_LIMIT {
+        // asin series (error below 1e-18 relative here): avoids atan2 for the common case.
+        let s2 = sin * sin;
+        sin * (1.0 + s2 * (1.0 / 6.0 + s2 * (3.0 / 40.0 + s2 * (5.0 / 112.0))))
+    } else {
+        sin.atan2(c)
+    };
     let (r, dr_du) = if angle <= SMALL_ANGLE_RAD {
         // r = φ(c)·s with φ = θ/sin θ: ∂r/∂u = φ·T + φ'(c)·s·dᵀ,
         // φ'(c) = −(sin θ − θ cos θ)/sin³ θ = −(1/3 + 2θ²/15 + …).
@@ -522,6 +531,18 @@ pub fn angular_residual(
     (r.iter().all(|x| x.is_finite()) && j.iter().all(|x| x.is_finite())).then_some((r, j))
 }
 
+/// Adds `w·JᵀJ` to the lower triangle of `m` (the upper one is filled once at the end).
+#[inline]
+fn accumulate_lower(m: &mut Matrix6<f64>, j: &Matrix2x6, w: f64) {
+    for col in 0..6 {
+        let a0 = j[(0, col)] * w;
+        let a1 = j[(1, col)] * w;
+        for row in col..6 {
+            m[(row, col)] += a0 * j[(0, row)] + a1 * j[(1, row)];
+        }
+    }
+}
+
 /// Evaluates the cost and linearises at `pose` (rotation given as a unit quaternion).
 /// Returns `None` when a point sits on its ray origin or the cost is not finite.
 fn linearize(
@@ -547,8 +568,7 @@ fn linearize(
         cost += information * rho;
         sum_sq_angle += angle * angle;
         let w = weight * information;
-        let jtj = jacobian.tr_mul(&jacobian);
-        normal += jtj * w;
+        accumulate_lower(&mut normal, &jacobian, w);
         gradient += jacobian.tr_mul(&r) * w;
         // Second-order correction of the robust loss along the residual: the Hessian of
         // ρ(|r|) w.r.t. r is ω·(I − r̂r̂ᵀ) + ρ''·r̂r̂ᵀ. IRLS alone (ρ'' replaced by ω)
@@ -556,9 +576,16 @@ fn linearize(
         let correction = (curvature - weight) * information;
         if x > 0.0 && correction != 0.0 {
             let jr = jacobian.tr_mul(&(r / x));
-            step_normal += jr * jr.transpose() * correction;
+            for col in 0..6 {
+                let a = jr[col] * correction;
+                for row in col..6 {
+                    step_normal[(row, col)] += a * jr[row];
+                }
+            }
         }
     }
+    normal.fill_upper_triangle_with_lower_triangle();
+    step_normal.fill_upper_triangle_with_lower_triangle();
     step_normal += normal;
     if cost.is_finite() && sum_sq_angle.is_finite() {
         Some(Linearization {
