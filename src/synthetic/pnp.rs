@@ -26,7 +26,7 @@
 //! assert!(problem.rays_in_rig.iter().all(|r| (r.origin.norm() - 0.04).abs() < 1e-12));
 //! ```
 
-use super::{normal, perturb_bearing, random_pose, random_unit_vector};
+use super::{perturb_bearing, random_pose, random_unit_vector};
 use crate::geometry::{Pose, Ray, try_unit};
 use nalgebra::{Matrix6, Rotation3, Translation3, Vector3, Vector6};
 use rand::{Rng, RngExt};
@@ -355,11 +355,6 @@ pub fn position_nees(error: &Vector6<f64>, covariance: &Matrix6<f64>) -> Option<
     let chol = nalgebra::Cholesky::new(c)?;
     let value = e.dot(&chol.solve(&e));
     value.is_finite().then_some(value)
-}
-
-/// A standard normal 6-vector (handy to draw pose perturbations with a given covariance).
-pub fn normal_vector6<R: Rng + ?Sized>(rng: &mut R) -> Vector6<f64> {
-    Vector6::from_fn(|_, _| normal(rng))
 }
 
 #[cfg(test)]
