@@ -3,7 +3,13 @@
 use criterion::{criterion_group, criterion_main};
 
 mod geo;
+mod refine_pose;
 mod synthetic;
 
-criterion_group!(benches, synthetic::benches, geo::benches);
+criterion_group!(
+    benches,
+    geo::benches,
+    refine_pose::benches,
+    synthetic::benches,
+);
 criterion_main!(benches);
