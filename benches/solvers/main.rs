@@ -3,7 +3,15 @@
 use criterion::{criterion_group, criterion_main};
 
 mod fix;
+mod geo;
+mod refine_pose;
 mod synthetic;
 
-criterion_group!(benches, synthetic::benches, fix::benches);
+criterion_group!(
+    benches,
+    fix::benches,
+    geo::benches,
+    refine_pose::benches,
+    synthetic::benches,
+);
 criterion_main!(benches);

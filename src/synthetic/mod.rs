@@ -13,6 +13,9 @@
 //! }
 //! ```
 
+pub mod pnp;
+pub use pnp::{PnpConfig, PnpProblem, RigModel, ladybug_camera_centres, perturb_pose};
+
 use crate::geometry::{Pose, bearing_in_rig, try_unit};
 use nalgebra::{Rotation3, Translation3, UnitQuaternion, Vector3};
 use rand::{Rng, RngExt, SeedableRng};
