@@ -133,7 +133,10 @@ fn triangulate_recovers_the_synthetic_truth() {
     }
     // 12 landmarks × 3 dof: the mean NEES is 3 in expectation; allow wide sampling spread.
     let mean = nees_sum / rows.len() as f64;
-    eprintln!("triangulation NEES mean over {} landmarks: {mean:.2}", rows.len());
+    eprintln!(
+        "triangulation NEES mean over {} landmarks: {mean:.2}",
+        rows.len()
+    );
     assert!((1.0..6.0).contains(&mean), "mean NEES {mean}");
 }
 
