@@ -1,0 +1,3 @@
+//! stub
+/// stub
+pub fn p3p_cosines() {}
