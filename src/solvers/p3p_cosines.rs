@@ -590,3 +590,30 @@ mod tests {
         }
     }
 }
+#[cfg(test)]
+mod timing_probe {
+    use super::*;
+    use crate::synthetic::{P3pProblem, rng};
+    #[test]
+    #[ignore]
+    fn probe() {
+        let mut r = rng(5);
+        let ps: Vec<P3pProblem> = (0..20000).map(|_| P3pProblem::random_omni(&mut r, 50.0)).collect();
+        for n in [8usize, 16, 24, 32] {
+            for ex in [false, true] {
+                let t = std::time::Instant::now();
+                let mut c = 0;
+                for _ in 0..5 { for p in &ps { c += solve_ranges(&p.bearings_in_rig, &p.points_in_world, n, ex).len(); } }
+                println!("n={n} ex={ex}: {:.0} ns/solve ({c})", t.elapsed().as_nanos() as f64 / 1e5);
+            }
+        }
+        let t = std::time::Instant::now();
+        let mut c = 0;
+        for _ in 0..5 { for p in &ps { c += p3p_cosines(&p.bearings_in_rig, &p.points_in_world).len(); } }
+        println!("full: {:.0} ns/solve ({c})", t.elapsed().as_nanos() as f64 / 1e5);
+        let t = std::time::Instant::now();
+        let mut acc = 0.0;
+        for _ in 0..5 { for p in &ps { acc += crate::attitude::triad([&p.bearings_in_rig[0], &p.bearings_in_rig[1]], [&p.points_in_world[0], &p.points_in_world[1]]).map_or(0.0, |r| r[(0,0)]); } }
+        println!("triad: {:.0} ns ({acc})", t.elapsed().as_nanos() as f64 / 1e5);
+    }
+}
