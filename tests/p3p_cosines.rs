@@ -1,8 +1,8 @@
 //! Behaviour of the law-of-cosines P3P solver (`solvers::p3p_cosines`).
 use nalgebra::{Rotation3, Translation3, Vector3};
 use vgps::geometry::{Pose, bearing_in_rig};
-use vgps::solvers::p3p_cosines::{RangeSolutions, p3p_cosines_ranges};
 use vgps::solvers::p3p_cosines;
+use vgps::solvers::p3p_cosines::{RangeSolutions, p3p_cosines_ranges};
 use vgps::synthetic::{P3pProblem, random_rotation, random_unit_vector, rng};
 
 /// Position error (m) and rotation error (Frobenius norm of the matrix difference, ≈ √2 ×
@@ -96,7 +96,7 @@ fn symmetric_configuration_has_four_solutions() {
             })
             .map(|p| p.coords);
             let rig = Pose::from_parts(
-                Translation3::from(motion * nalgebra::Point3::new(0.0, 0.0, height)).into(),
+                Translation3::from(motion * nalgebra::Point3::new(0.0, 0.0, height)),
                 random_rotation(&mut r),
             );
             let problem = P3pProblem::from_points(rig, tri);

@@ -150,13 +150,19 @@ mod tests {
         assert!(close(hpr_deg(270.0, 0.0, 0.0).to_enu_from_rig() * x, -x));
         // Pitch +30° at heading 0: forward points up-north.
         let f = hpr_deg(0.0, 30.0, 0.0).to_enu_from_rig() * x;
-        assert!(close(f, Vector3::new(0.0, 0.5f64.sqrt() * 1.5f64.sqrt(), 0.5)));
+        assert!(close(
+            f,
+            Vector3::new(0.0, 0.5f64.sqrt() * 1.5f64.sqrt(), 0.5)
+        ));
         // Roll +90° at heading 0: the right side (−y) points down, left (+y) points up.
         let r = hpr_deg(0.0, 0.0, 90.0).to_enu_from_rig();
         assert!(close(r * (-y), -z) && close(r * x, y));
         // Heading 45°, pitch 0: forward = north-east.
         let h = 0.5f64.sqrt();
-        assert!(close(hpr_deg(45.0, 0.0, 0.0).to_enu_from_rig() * x, Vector3::new(h, h, 0.0)));
+        assert!(close(
+            hpr_deg(45.0, 0.0, 0.0).to_enu_from_rig() * x,
+            Vector3::new(h, h, 0.0)
+        ));
     }
 
     #[test]
@@ -198,7 +204,10 @@ mod tests {
                 assert!(b.heading_rad.is_finite() && b.pitch_rad.is_finite());
                 assert!(b.roll_rad.is_finite());
                 assert!((b.pitch_rad - a.pitch_rad).abs() < 1e-7);
-                assert!((b.to_enu_from_rig().matrix() - rot.matrix()).norm() < 1e-7, "{a:?} {b:?}");
+                assert!(
+                    (b.to_enu_from_rig().matrix() - rot.matrix()).norm() < 1e-7,
+                    "{a:?} {b:?}"
+                );
             }
         }
         // Exactly at the zenith, roll is reported as zero and heading absorbs it.

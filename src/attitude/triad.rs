@@ -47,10 +47,7 @@ pub const MIN_TRIAD_SINE: f64 = 1e-10;
 ///   Technical Meeting, Emerging Technologies Panel, Monterey CA, January 2006.
 /// - H. D. Black, "A passive system for determining the attitude of a satellite",
 ///   AIAA Journal 2(7), 1964.
-pub fn triad(
-    in_rig: [&Vector3<f64>; 2],
-    in_world: [&Vector3<f64>; 2],
-) -> Option<Rotation3<f64>> {
+pub fn triad(in_rig: [&Vector3<f64>; 2], in_world: [&Vector3<f64>; 2]) -> Option<Rotation3<f64>> {
     let rig = orthonormal_triad(in_rig[0], in_rig[1])?;
     let world = orthonormal_triad(in_world[0], in_world[1])?;
     let m = world * rig.transpose();
@@ -65,7 +62,7 @@ fn orthonormal_triad(first: &Vector3<f64>, second: &Vector3<f64>) -> Option<Matr
     let b = try_unit(second)?;
     let c = t1.cross(&b);
     let n = c.norm();
-    if !(n > MIN_TRIAD_SINE) {
+    if n.is_nan() || n <= MIN_TRIAD_SINE {
         return None;
     }
     let t2 = c / n;

@@ -60,7 +60,7 @@ pub fn wahba(
     // Indices of the largest, middle and smallest singular values.
     let mut order = [0usize, 1, 2];
     order.sort_by(|&i, &j| s[j].total_cmp(&s[i]));
-    if !(s[order[1]] > MIN_WAHBA_SINE * s[order[0]]) {
+    if s[order[1]].is_nan() || s[order[1]] <= MIN_WAHBA_SINE * s[order[0]] {
         return None;
     }
     let mut d = Vector3::repeat(1.0);
@@ -77,7 +77,7 @@ pub fn wahba(
 /// leaves errors of order ε·s₁/(s₂ + s₃) or larger; this step brings the rotation back to the rounding
 /// level of the loss itself (the step is negligible otherwise). Returns the input rotation if
 /// the step is not finite.
-fn polish(r: Rotation3<f64>, pairs: &[(Vector3<f64>, Vector3<f64>, f64)]) -> Rotation3<f64> {
+fn polish(r: Rotation3<f64>, pairs: &[Pair]) -> Rotation3<f64> {
     let mut information = Matrix3::zeros();
     let mut gradient = Vector3::zeros();
     for (a, b, w) in pairs {
@@ -154,19 +154,22 @@ pub fn wahba_with_covariance(
     p.iter().all(|x| x.is_finite()).then_some((rotation, p))
 }
 
+/// A normalised direction pair with its weight: (in rig, in world, weight).
+type Pair = (Vector3<f64>, Vector3<f64>, f64);
+
 /// The normalised (rig, world, weight) triples of positive weight, after validating the
 /// input; `None` on any invalid input or when a frame lacks two non-parallel directions.
 fn unit_pairs(
     in_rig: &[Vector3<f64>],
     in_world: &[Vector3<f64>],
     weights: &[f64],
-) -> Option<Vec<(Vector3<f64>, Vector3<f64>, f64)>> {
+) -> Option<Vec<Pair>> {
     if in_rig.len() != in_world.len() || in_rig.len() != weights.len() {
         return None;
     }
     let mut pairs = Vec::with_capacity(in_rig.len());
     for ((a, b), &w) in in_rig.iter().zip(in_world).zip(weights) {
-        if !(w.is_finite() && w >= 0.0) || !is_finite(a) || !is_finite(b) {
+        if !(w.is_finite() && w >= 0.0 && is_finite(a) && is_finite(b)) {
             return None;
         }
         let (a, b) = (try_unit(a)?, try_unit(b)?);
@@ -174,7 +177,7 @@ fn unit_pairs(
             pairs.push((a, b, w));
         }
     }
-    let spans_two = |pick: fn(&(Vector3<f64>, Vector3<f64>, f64)) -> Vector3<f64>| {
+    let spans_two = |pick: fn(&Pair) -> Vector3<f64>| {
         let first = pick(pairs.first()?);
         pairs
             .iter()
@@ -216,7 +219,11 @@ mod tests {
                 let est = wahba(&rig, &world, &w).unwrap();
                 // Precision follows the conditioning of the information matrix.
                 let e = (est.matrix() - truth.matrix()).norm();
-                assert!(e < 1e-14 * condition(&world, &w), "n={n} {e} {}", condition(&world, &w));
+                assert!(
+                    e < 1e-14 * condition(&world, &w),
+                    "n={n} {e} {}",
+                    condition(&world, &w)
+                );
                 assert!((est.matrix().determinant() - 1.0).abs() < 1e-12);
             }
         }
@@ -232,7 +239,11 @@ mod tests {
             let w = wahba(&a, &b, &[1.0, 1.0]).unwrap();
             let t = super::super::triad([&a[0], &a[1]], [&b[0], &b[1]]).unwrap();
             let e = (w.matrix() - t.matrix()).norm();
-            assert!(e < 1e-14 * condition(&b, &[1.0, 1.0]), "{e} {}", condition(&b, &[1.0, 1.0]));
+            assert!(
+                e < 1e-14 * condition(&b, &[1.0, 1.0]),
+                "{e} {}",
+                condition(&b, &[1.0, 1.0])
+            );
         }
     }
 

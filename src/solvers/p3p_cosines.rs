@@ -369,7 +369,7 @@ fn hermite_two_extrema(a: &Node, b: &Node) -> Option<f64> {
     let qb = 6.0 * delta - 4.0 * m0 - 2.0 * m1;
     let qc = m0;
     let disc = qb * qb - 4.0 * qa * qc;
-    if qa == 0.0 || !(disc > 0.0) {
+    if qa == 0.0 || disc.is_nan() || disc <= 0.0 {
         return None;
     }
     let sq = disc.sqrt();
@@ -377,7 +377,7 @@ fn hermite_two_extrema(a: &Node, b: &Node) -> Option<f64> {
     let q = -0.5 * (qb + qb.signum() * sq);
     let (t1, t2) = (q / qa, if q != 0.0 { qc / q } else { f64::NAN });
     let inside = |t: f64| t > 0.0 && t < 1.0;
-    (inside(t1) && inside(t2)).then(|| 0.5 * (t1 + t2))
+    (inside(t1) && inside(t2)).then_some(0.5 * (t1 + t2))
 }
 
 /// The law-of-cosines root search with a given sampling (exposed to the crate for the
@@ -399,7 +399,8 @@ pub(crate) fn solve_ranges(
     let (e01, e02, e12) = (x[1] - x[0], x[2] - x[0], x[2] - x[1]);
     let (s01, s02, s12) = (e01.norm(), e02.norm(), e12.norm());
     let longest = s01.max(s02).max(s12);
-    if !(e01.cross(&e02).norm() > MIN_TRIANGLE_SINE * longest * longest) {
+    let area2 = e01.cross(&e02).norm();
+    if area2.is_nan() || area2 <= MIN_TRIANGLE_SINE * longest * longest {
         return out;
     }
     let cos = [d[0].dot(&d[1]), d[0].dot(&d[2]), d[1].dot(&d[2])];
@@ -483,7 +484,10 @@ pub(crate) fn solve_ranges(
                 visit(node_pair(junction, &residual.at(junction)), &mut previous);
             }
         }
-        visit(node_pair(alpha, &residual.sample(sin_k, cos_k)), &mut previous);
+        visit(
+            node_pair(alpha, &residual.sample(sin_k, cos_k)),
+            &mut previous,
+        );
     }
 
     // Ranges of the roots: all positive, duplicates removed.
@@ -492,9 +496,9 @@ pub(crate) fn solve_ranges(
         let p = residual.at(alpha);
         let r = [p.r0, p.ra, residual.rb(&p, sign)];
         if r.iter().all(|v| *v > 0.0 && v.is_finite())
-            && !roots.iter().any(|q| {
-                (0..3).all(|k| (q[k] - r[k]).abs() <= DUPLICATE_RANGE_TOLERANCE * scale)
-            })
+            && !roots
+                .iter()
+                .any(|q| (0..3).all(|k| (q[k] - r[k]).abs() <= DUPLICATE_RANGE_TOLERANCE * scale))
         {
             let _ = roots.try_push(r);
         }
@@ -516,10 +520,10 @@ fn pose_from_ranges(
 ) -> Option<Pose> {
     let p: [Vector3<f64>; 3] = std::array::from_fn(|i| unit_bearings[i] * ranges[i]);
     let x = points_in_world;
-    let rotation: Rotation3<f64> = triad([&(p[1] - p[0]), &(p[2] - p[0])], [
-        &(x[1] - x[0]),
-        &(x[2] - x[0]),
-    ])?;
+    let rotation: Rotation3<f64> = triad(
+        [&(p[1] - p[0]), &(p[2] - p[0])],
+        [&(x[1] - x[0]), &(x[2] - x[0])],
+    )?;
     let centroid_rig = (p[0] + p[1] + p[2]) / 3.0;
     let centroid_world = (x[0] + x[1] + x[2]) / 3.0;
     let t = centroid_world - rotation * centroid_rig;
@@ -543,7 +547,8 @@ mod tests {
             .fold(f64::INFINITY, f64::min)
     }
 
-    /// Miss-rate measurement (run on demand):
+    /// Miss-rate measurement against a 4096-sample reference on 10⁵ problems, for several
+    /// sample counts with and without the extremum search (≈ 1 min; run on demand):
     /// `cargo test --release --lib p3p_cosines::tests::miss_rate -- --ignored --nocapture`.
     #[test]
     #[ignore]
@@ -551,7 +556,9 @@ mod tests {
         let trials = 100_000;
         let problems: Vec<P3pProblem> = {
             let mut r = rng(1000);
-            (0..trials).map(|_| P3pProblem::random_omni(&mut r, 1.0)).collect()
+            (0..trials)
+                .map(|_| P3pProblem::random_omni(&mut r, 1.0))
+                .collect()
         };
         let reference: Vec<RangeSolutions> = problems
             .iter()
@@ -575,8 +582,6 @@ mod tests {
                         missed_truth += 1;
                     }
                     for r in s_ref {
-                        let mut one = RangeSolutions::new();
-                        one.push(*r);
                         if best_range_error(&s, r) > 1e-6 {
                             missed_roots += 1;
                         }
@@ -586,34 +591,11 @@ mod tests {
                 println!(
                     "extrema={extrema} n={n}: truth missed {missed_truth}/{trials}, roots missed {missed_roots}/{total_roots}, extra {extra}"
                 );
+                if extrema && n == RESIDUAL_SAMPLES {
+                    assert_eq!(missed_roots, 0);
+                    assert_eq!(extra, 0);
+                }
             }
         }
-    }
-}
-#[cfg(test)]
-mod timing_probe {
-    use super::*;
-    use crate::synthetic::{P3pProblem, rng};
-    #[test]
-    #[ignore]
-    fn probe() {
-        let mut r = rng(5);
-        let ps: Vec<P3pProblem> = (0..20000).map(|_| P3pProblem::random_omni(&mut r, 50.0)).collect();
-        for n in [8usize, 16, 24, 32] {
-            for ex in [false, true] {
-                let t = std::time::Instant::now();
-                let mut c = 0;
-                for _ in 0..5 { for p in &ps { c += solve_ranges(&p.bearings_in_rig, &p.points_in_world, n, ex).len(); } }
-                println!("n={n} ex={ex}: {:.0} ns/solve ({c})", t.elapsed().as_nanos() as f64 / 1e5);
-            }
-        }
-        let t = std::time::Instant::now();
-        let mut c = 0;
-        for _ in 0..5 { for p in &ps { c += p3p_cosines(&p.bearings_in_rig, &p.points_in_world).len(); } }
-        println!("full: {:.0} ns/solve ({c})", t.elapsed().as_nanos() as f64 / 1e5);
-        let t = std::time::Instant::now();
-        let mut acc = 0.0;
-        for _ in 0..5 { for p in &ps { acc += crate::attitude::triad([&p.bearings_in_rig[0], &p.bearings_in_rig[1]], [&p.points_in_world[0], &p.points_in_world[1]]).map_or(0.0, |r| r[(0,0)]); } }
-        println!("triad: {:.0} ns ({acc})", t.elapsed().as_nanos() as f64 / 1e5);
     }
 }

@@ -98,11 +98,11 @@ pub fn trilaterate(
     let e2 = centres[2] - centres[0];
     let (d, l2, l12) = (e1.norm(), e2.norm(), (centres[2] - centres[1]).norm());
     let separation = d.max(l2).max(l12);
-    if !(d.min(l2).min(l12) > MIN_CENTRE_SEPARATION * separation) {
+    if d.min(l2).min(l12) <= MIN_CENTRE_SEPARATION * separation {
         return Err(TrilaterationError::CoincidentCentres);
     }
     let normal = e1.cross(&e2);
-    if !(normal.norm() > MIN_CENTRES_SINE * d * l2) {
+    if normal.norm() <= MIN_CENTRES_SINE * d * l2 {
         return Err(TrilaterationError::CollinearCentres);
     }
     let ex = e1 / d;
@@ -201,7 +201,11 @@ mod tests {
             // Mirror of p through the plane of the centres.
             let n = normal.normalize();
             let mirror = p - 2.0 * n * n.dot(&(p - c[0]));
-            let (above, below) = if n.dot(&(p - c[0])) >= 0.0 { (p, mirror) } else { (mirror, p) };
+            let (above, below) = if n.dot(&(p - c[0])) >= 0.0 {
+                (p, mirror)
+            } else {
+                (mirror, p)
+            };
             // Precision degrades like √ε near the plane (the intersection is near-tangent).
             let h = n.dot(&(p - c[0])).abs();
             let tol = 1e-12 * 60.0 + 1e-13 * 3600.0 / h.max(1e-3);
@@ -225,7 +229,11 @@ mod tests {
             let x = problem.points_in_world;
             let s = trilaterate(&x, &x.map(|xi| (xi - p).norm())).unwrap();
             let chosen = select_by_handedness(&s, &x, &problem.bearings_in_rig).unwrap();
-            let h = (x[1] - x[0]).cross(&(x[2] - x[0])).normalize().dot(&(p - x[0])).abs();
+            let h = (x[1] - x[0])
+                .cross(&(x[2] - x[0]))
+                .normalize()
+                .dot(&(p - x[0]))
+                .abs();
             if h > 1e-3 {
                 assert!((chosen - p).norm() < 1e-8, "{}", (chosen - p).norm());
                 checked += 1;
@@ -236,7 +244,11 @@ mod tests {
 
     #[test]
     fn tangent_spheres_give_two_equal_points() {
-        let c = [Vector3::zeros(), Vector3::new(2.0, 0.0, 0.0), Vector3::new(0.0, 2.0, 0.0)];
+        let c = [
+            Vector3::zeros(),
+            Vector3::new(2.0, 0.0, 0.0),
+            Vector3::new(0.0, 2.0, 0.0),
+        ];
         let p = Vector3::new(0.5, 0.7, 0.0);
         let s = trilaterate(&c, &c.map(|ci| (ci - p).norm())).unwrap();
         assert!((s[0] - p).norm() < 1e-7 && s[0] == s[1]);
@@ -249,7 +261,11 @@ mod tests {
 
     #[test]
     fn errors_are_typed() {
-        let c = [Vector3::zeros(), Vector3::new(2.0, 0.0, 0.0), Vector3::new(0.0, 2.0, 0.0)];
+        let c = [
+            Vector3::zeros(),
+            Vector3::new(2.0, 0.0, 0.0),
+            Vector3::new(0.0, 2.0, 0.0),
+        ];
         assert!(trilaterate(&c, &[1.0, 1.5, 1.5]).is_ok());
         assert_eq!(
             trilaterate(&c, &[1.0, f64::NAN, 1.0]),
@@ -257,7 +273,10 @@ mod tests {
         );
         let mut bad = c;
         bad[2].z = f64::INFINITY;
-        assert_eq!(trilaterate(&bad, &[1.0; 3]), Err(TrilaterationError::NonFinite));
+        assert_eq!(
+            trilaterate(&bad, &[1.0; 3]),
+            Err(TrilaterationError::NonFinite)
+        );
         assert_eq!(
             trilaterate(&c, &[1.0, -1.0, 1.0]),
             Err(TrilaterationError::NegativeRange)
