@@ -17,11 +17,10 @@ pub const MIN_BEARING_SINE: f64 = 1e-9;
 /// and the pose is not determined.
 pub const MIN_TRIANGLE_SINE: f64 = 1e-9;
 
-/// Number of samples of the residual over the parameter interval. Every sign change and
-/// every sampled approach to zero (an extremum of the residual between two samples) is
-/// refined, so a root is only missed when two roots and an extremum fall between two
-/// samples without the extremum being detected; see `docs/solvers.md` for the measured miss
-/// rate.
+/// Number of uniform samples of the residual over the parameter interval (per branch).
+/// Sign changes, near-tangent extrema and S-shapes between samples are all searched, so
+/// with 24 samples no root of the 4096-sample reference was missed in 10⁵ random
+/// omnidirectional problems (see `docs/solvers.md` for the measured miss rates).
 pub const RESIDUAL_SAMPLES: usize = 24;
 
 /// Two range solutions closer than this fraction of the scene size are the same solution.
@@ -125,8 +124,8 @@ pub fn p3p_cosines(
 /// # Method
 /// Landmark 0 is the pivot; of landmarks 1 and 2, call `a` the one with the smaller
 /// `R₀ₐ = s₀ₐ / sin θ₀ₐ` and `b` the other. The equation of the pair (0, a) is an ellipse in
-/// the `(r₀, rₐ)` plane, parameterised by the angle `α` of the triangle (rig, X₀, Xₐ) at
-/// `Xₐ`... precisely, by the law of sines,
+/// the `(r₀, rₐ)` plane, parameterised by the angle `α` at `X₀` of the triangle
+/// (rig, X₀, Xₐ); by the law of sines
 ///
 /// ```text
 /// r₀(α) = R₀ₐ sin(θ₀ₐ + α),  rₐ(α) = R₀ₐ sin α,   α ∈ [0, π − θ₀ₐ]
@@ -134,14 +133,16 @@ pub fn p3p_cosines(
 ///
 /// which covers both quadratic branches `rₐ = r₀ cos θ₀ₐ ± √(s₀ₐ² − r₀² sin² θ₀ₐ)` with
 /// `r₀, rₐ ≥ 0` in one smooth sweep (the branches meet at `r₀ = R₀ₐ`, `α = π/2 − θ₀ₐ`, where
-/// `dr₀/drₐ` is infinite but `α` is regular). Then `r_b = r₀ cos θ₀b ± √(s₀b² − r₀² sin² θ₀b)`
+/// `drₐ/dr₀` is infinite but `α` is regular). Then `r_b = r₀ cos θ₀b ± √(s₀b² − r₀² sin² θ₀b)`
 /// is real on the whole sweep because `r₀ ≤ R₀ₐ ≤ R₀b`. On each of the two `r_b` branches
 /// the residual `g(α) = rₐ² + r_b² − 2 rₐ r_b cos θₐb − sₐb²` is sampled at
-/// [`RESIDUAL_SAMPLES`] points (plus the branch junction); every sign change is refined by
-/// safeguarded Newton iteration with the analytic derivative, and every sampled approach to
-/// zero (derivative changing sign towards zero) is searched for its extremum, which yields
-/// two brackets when it crosses zero. Roots with all ranges positive are kept, duplicates
-/// (the two `r_b` branches meet where `r₀ = R₀b`) removed.
+/// [`RESIDUAL_SAMPLES`] uniform nodes (plus the branch junction) with its analytic
+/// derivative. Every sign change is refined by safeguarded Newton iteration; an interval
+/// whose end slopes show `|g|` falling then rising is searched for a near-double root (the
+/// tangent lines at its ends bound a convex `|g|` from below, and the interval is split at
+/// their intersection until the bound clears or a sign change appears); an interval whose
+/// cubic Hermite interpolant has two interior extrema (possible triple crossing) is split
+/// between them. Roots with all ranges positive are kept, duplicates removed.
 ///
 /// # Returns
 /// Up to four range triples `[r₀, r₁, r₂]` in increasing order of `r₀`; empty on the
