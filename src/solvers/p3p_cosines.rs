@@ -365,20 +365,20 @@ struct Node {
 fn hermite_two_extrema(a: &Node, b: &Node) -> Option<f64> {
     let h = b.alpha - a.alpha;
     let (m0, m1, delta) = (a.dg * h, b.dg * h, b.g - a.g);
-    // H'(t) = qa t² + qb t + qc on t ∈ [0, 1].
-    let qa = 3.0 * (m0 + m1) - 6.0 * delta;
-    let qb = 6.0 * delta - 4.0 * m0 - 2.0 * m1;
-    let qc = m0;
-    let disc = qb * qb - 4.0 * qa * qc;
-    if qa == 0.0 || disc.is_nan() || disc <= 0.0 {
+    // H'(t) = qa t² + qb t + qc on t ∈ [0, 1], with H'(0) = m0 and H'(1) = m1. Two roots
+    // inside ⇔ m0 and m1 have the same sign and the vertex lies inside with H' of the other
+    // sign there; their midpoint is the vertex.
+    if m0 * m1 <= 0.0 {
         return None;
     }
-    let sq = disc.sqrt();
-    // Numerically stable pair of roots.
-    let q = -0.5 * (qb + qb.signum() * sq);
-    let (t1, t2) = (q / qa, if q != 0.0 { qc / q } else { f64::NAN });
-    let inside = |t: f64| t > 0.0 && t < 1.0;
-    (inside(t1) && inside(t2)).then_some(0.5 * (t1 + t2))
+    let qa = 3.0 * (m0 + m1) - 6.0 * delta;
+    let qb = 6.0 * delta - 4.0 * m0 - 2.0 * m1;
+    if qa == 0.0 {
+        return None;
+    }
+    let t = -qb / (2.0 * qa);
+    let at_vertex = m0 - qb * qb / (4.0 * qa);
+    (t > 0.0 && t < 1.0 && at_vertex * m0 < 0.0).then_some(t)
 }
 
 /// The law-of-cosines root search with a given sampling (exposed to the crate for the
@@ -442,6 +442,10 @@ pub(crate) fn solve_ranges(
     // junction of rₐ inserted as an extra node. The end nodes have rₐ = 0 or r₀ = 0, so a
     // root exactly there is no solution.
     let mut found: ArrayVec<(f64, f64), 16> = ArrayVec::new();
+    // rb on the − branch is positive only where cos θ0b > 0 and r0 > s0b; r0 peaks at R0a
+    // (at the junction) or, past a right angle θ0a, at s0a (α = 0). Skip it when never so.
+    let r0_max = if junction > 0.0 { residual.radius } else { s0a };
+    let minus_branch = cos_0b > 0.0 && r0_max > s0b;
     let tangent_tolerance = TANGENT_RESIDUAL_TOLERANCE * scale * scale;
     let n = samples.max(2);
     let step = alpha_end / n as f64;
@@ -456,6 +460,9 @@ pub(crate) fn solve_ranges(
     let mut previous = node_pair(0.0, &residual.sample(0.0, 1.0));
     let mut visit = |current: [Node; 2], previous: &mut [Node; 2]| {
         for (k, sign) in [1.0, -1.0].into_iter().enumerate() {
+            if sign < 0.0 && !minus_branch {
+                continue;
+            }
             let (a, b) = (previous[k], current[k]);
             if search_extrema {
                 residual.scan(sign, a, b, 0, tangent_tolerance, &mut found);
