@@ -3,12 +3,14 @@
 use criterion::{criterion_group, criterion_main};
 
 mod geo;
+mod p3p_cosines;
 mod refine_pose;
 mod synthetic;
 
 criterion_group!(
     benches,
     geo::benches,
+    p3p_cosines::benches,
     refine_pose::benches,
     synthetic::benches,
 );
