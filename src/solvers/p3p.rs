@@ -58,11 +58,13 @@ const CUBIC_LEADING_TOL: f64 = 1e-14;
 /// as a double root, and a (slightly) positive eigenvalue product as a double line.
 const DISCRIMINANT_TOL: f64 = 1e-12;
 
-/// Newton steps on the distance equations (the paper uses a few Gauss-Newton steps).
-const REFINE_STEPS: usize = 5;
+/// Most Newton steps on the distance equations (the paper uses a few Gauss-Newton steps;
+/// the closed-form ranges are usually accurate to 1e-12 or better, so one step suffices).
+const REFINE_STEPS: usize = 3;
 
-/// Residual of the normalised distance equations (longest side 1) at which refinement stops.
-const REFINE_CONVERGED: f64 = 1e-15;
+/// Largest residual of the normalised distance equations (longest side 1) at which the
+/// ranges count as converged.
+const REFINE_CONVERGED: f64 = 1e-14;
 
 /// Largest residual of the normalised distance equations accepted in a solution; larger
 /// ones would make the recovered rotation measurably non-orthonormal.
@@ -373,6 +375,12 @@ pub fn p3p(
     let n_lines = if h == Vector3::zeros() { 1 } else { 2 };
     for line in 0..n_lines {
         let u = if line == 0 { g + h } else { g - h };
+        // The plane u·Λ = 0 meets the open positive octant only if u has entries of both
+        // signs: skip lines that cannot carry positive ranges.
+        let (lo, hi) = (u.x.min(u.y).min(u.z), u.x.max(u.y).max(u.z));
+        if !(lo < 0.0 && hi > 0.0) {
+            continue;
+        }
         // Two independent vectors spanning the plane u·Λ = 0 (u × eₖ for the two axes k
         // other than the largest component of u).
         let (va, vb) = match argmax_abs(&u) {
@@ -432,11 +440,23 @@ pub fn p3p(
             let w1 = v1 * (1.0 / n1.sqrt());
             let w3 = v3 * (1.0 / n3.sqrt());
             let w2 = w3.cross(&w1);
-            let rot: Matrix3<f64> = u1 * w1.transpose() + u2 * w2.transpose() + u3 * w3.transpose();
-            let origin = x1 - rot * p1;
-            if !(rot.iter().all(|e| e.is_finite()) && crate::geometry::is_finite(&origin)) {
+            // world_from_rig = [u1 u2 u3] [w1 w2 w3]ᵀ.
+            let row = |i: usize| {
+                Vector3::new(
+                    u1[i] * w1.x + u2[i] * w2.x + u3[i] * w3.x,
+                    u1[i] * w1.y + u2[i] * w2.y + u3[i] * w3.y,
+                    u1[i] * w1.z + u2[i] * w2.z + u3[i] * w3.z,
+                )
+            };
+            let (q0, q1, q2) = (row(0), row(1), row(2));
+            let origin = x1 - Vector3::new(q0.dot(&p1), q1.dot(&p1), q2.dot(&p1));
+            // One test for all twelve entries: a NaN or infinity makes the sum non-finite
+            // (the entries are bounded, so the sum cannot overflow on its own).
+            let total = q0.sum() + q1.sum() + q2.sum() + origin.sum();
+            if !total.is_finite() {
                 continue;
             }
+            let rot = Matrix3::from_rows(&[q0.transpose(), q1.transpose(), q2.transpose()]);
             let _ = solutions.try_push(Pose::from_parts(
                 Translation3::from(origin),
                 Rotation3::from_matrix_unchecked(rot),
@@ -465,16 +485,23 @@ impl Equations {
         ]
     }
 
-    /// Newton steps on the three equations (closed-form inverse of the sparse Jacobian).
-    /// Returns `None` if the ranges do not satisfy the equations to [`MAX_RESIDUAL`].
+    /// At most [`REFINE_STEPS`] Newton steps on the three equations (closed-form inverse of
+    /// the sparse Jacobian), stopping once converged. Returns `None` if the ranges do not
+    /// satisfy the equations to [`MAX_RESIDUAL`].
     #[inline(always)]
     fn refine(&self, mut l: Vector3<f64>) -> Option<Vector3<f64>> {
         let [b12, b13, b23] = self.b;
-        for _ in 0..REFINE_STEPS {
+        let mut step_count = 0;
+        loop {
             let [r1, r2, r3] = self.residual(&l);
-            if r1.abs() + r2.abs() + r3.abs() <= REFINE_CONVERGED {
+            let worst = r1.abs().max(r2.abs()).max(r3.abs());
+            if worst <= REFINE_CONVERGED {
                 return Some(l);
             }
+            if step_count == REFINE_STEPS {
+                return (worst <= MAX_RESIDUAL).then_some(l);
+            }
+            step_count += 1;
             // Half the Jacobian: rows ∂/∂λ of equations 12, 13, 23.
             let x11 = l.x - b12 * l.y;
             let x12 = l.y - b12 * l.x;
@@ -490,11 +517,9 @@ impl Equations {
                 (x21 * x32 * r1 - x11 * x32 * r2 - x12 * x21 * r3) * k,
             );
             if !crate::geometry::is_finite(&step) {
-                break;
+                return (worst <= MAX_RESIDUAL).then_some(l);
             }
             l += step;
         }
-        let [r1, r2, r3] = self.residual(&l);
-        (r1.abs().max(r2.abs()).max(r3.abs()) <= MAX_RESIDUAL).then_some(l)
     }
 }
