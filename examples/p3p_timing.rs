@@ -19,7 +19,8 @@ fn run(label: &str, problems: &[P3pProblem], repeats: usize) {
         nonfinite = 0;
         let start = Instant::now();
         for p in problems {
-            let s = vgps::solvers::p3p(black_box(&p.bearings_in_rig), black_box(&p.points_in_world));
+            let s =
+                vgps::solvers::p3p(black_box(&p.bearings_in_rig), black_box(&p.points_in_world));
             n_solutions += s.len();
             for pose in &s {
                 let m = pose.to_homogeneous();
@@ -44,9 +45,14 @@ fn main() {
     let seed: u64 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(1);
     let repeats: usize = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(5);
     let mut r = rng(seed);
-    let problems: Vec<P3pProblem> = (0..n).map(|_| P3pProblem::random_omni(&mut r, 50.0)).collect();
+    let problems: Vec<P3pProblem> = (0..n)
+        .map(|_| P3pProblem::random_omni(&mut r, 50.0))
+        .collect();
     run("vgps_p3p", &problems, repeats);
     let sigma = 0.5f64.to_radians();
-    let noisy: Vec<P3pProblem> = problems.iter().map(|p| p.with_noise(&mut r, sigma)).collect();
+    let noisy: Vec<P3pProblem> = problems
+        .iter()
+        .map(|p| p.with_noise(&mut r, sigma))
+        .collect();
     run("vgps_p3p_noisy_0.5deg", &noisy, repeats);
 }

@@ -3,9 +3,9 @@
 
 All figures come from one run on this machine:
   * vgps: `cargo run --release --example p3p_timing -- N SEED` (native loop, std::time::Instant);
-  * PoseLib: `poselib.p3p(x, X)` per call from Python (the binding exposes the minimal solver;
-    the per-call figure includes the pybind11 call and conversion overhead, measured
-    separately with a trivial binding call and printed);
+  * PoseLib: `poselib.p3p(x, X)` per call from Python (the binding exposes the minimal
+    solver; the per-call figure is dominated by the pybind11 call and list/array conversion,
+    so it is an upper bound on the native solver time, not a like-for-like figure);
   * OpenCV: `cv2.solveP3P` (SOLVEPNP_P3P and SOLVEPNP_AP3P) per call from Python.
 
 Problems: random poses, three landmarks at ranges uniform in [0.1, 1] x 50 m. vgps and
@@ -124,9 +124,6 @@ def main():
         probs = [make_problem(rng, front=False) for _ in range(N)]
         args = [([p[3][i] for i in range(3)], [p[2][i] for i in range(3)]) for p in probs]
         ns = time_calls(poselib.p3p, args)
-        # Binding overhead: a call that returns at once (degenerate zero bearings).
-        zero = [np.zeros(3)] * 3
-        overhead = time_calls(poselib.p3p, [(zero, zero)] * N)
         found = 0
         for (R, c, X, x), a in zip(probs, args):
             sols = poselib.p3p(*a)
@@ -139,8 +136,6 @@ def main():
             if nonfinite([s.R for s in sols] + [s.t for s in sols]):
                 bad += 1
         rows.append(("PoseLib p3p (omni, Python call)", ns, bad / N, found / N))
-        rows.append(("  of which binding overhead (zero input)", overhead, float("nan"), float("nan")))
-        rows.append(("PoseLib p3p minus binding overhead", ns - overhead, float("nan"), float("nan")))
     except ImportError:
         print("poselib not installed: pip install -r bench/peers/requirements.txt")
 

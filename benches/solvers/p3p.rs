@@ -21,7 +21,10 @@ pub fn benches(c: &mut Criterion) {
         })
     });
     let sigma = 0.5f64.to_radians();
-    let noisy: Vec<P3pProblem> = problems.iter().map(|p| p.with_noise(&mut r, sigma)).collect();
+    let noisy: Vec<P3pProblem> = problems
+        .iter()
+        .map(|p| p.with_noise(&mut r, sigma))
+        .collect();
     let mut j = 0usize;
     c.bench_function("p3p/noisy_0.5deg", |b| {
         b.iter(|| {

@@ -132,8 +132,12 @@ mod tests {
     #[test]
     fn one_real_root_is_found() {
         // (t - r)(t² + p t + q) with p² < 4q.
-        for &(r, p, q) in &[(1.5, 0.0, 1.0), (-3.0, 2.0, 5.0), (1e3, -1.0, 1.0), (0.0, 0.1, 1e-2)]
-        {
+        for &(r, p, q) in &[
+            (1.5, 0.0, 1.0),
+            (-3.0, 2.0, 5.0),
+            (1e3, -1.0, 1.0),
+            (0.0, 0.1, 1e-2),
+        ] {
             let b = p - r;
             let c = q - r * p;
             let d = -r * q;

@@ -150,6 +150,12 @@ impl Sym3 {
     }
 }
 
+/// `x > 0`, false for NaN: the guard form used before every square root and division.
+#[inline(always)]
+fn positive(x: f64) -> bool {
+    x > 0.0
+}
+
 /// Index of the entry of largest magnitude.
 #[inline(always)]
 fn argmax_abs(v: &Vector3<f64>) -> usize {
@@ -310,7 +316,7 @@ pub fn p3p(
     }
     m = m.min(0.0);
     let sigma1 = 0.5 * t + (0.25 * t * t - m).sqrt().copysign(t);
-    if !(sigma1.abs() > 0.0) {
+    if !positive(sigma1.abs()) {
         return solutions;
     }
     let sigma2 = m / sigma1;
@@ -337,7 +343,7 @@ pub fn p3p(
     let q = d0.add_scaled(-1.0, &p);
     let kp = argmax_abs(&p.diag());
     let pkk = p.diag()[kp].abs();
-    if !(pkk > 0.0) {
+    if !positive(pkk) {
         return solutions;
     }
     // g = √|σ₁| e₁ and h = √|σ₂| e₂ (up to sign).
@@ -415,7 +421,7 @@ pub fn p3p(
             }
             let (li, lj) = (lam[si], lam[sj]);
             let side2 = li * li + lj * lj - 2.0 * sb * li * lj;
-            if !(side2 > 0.0) {
+            if !positive(side2) {
                 continue;
             }
             lam *= 1.0 / side2.sqrt();
