@@ -42,7 +42,10 @@ fn run(label: &str, problems: &[P3pProblem], repeats: usize) {
         }
         let ns = start.elapsed().as_secs_f64() * 1e9 / problems.len() as f64;
         best = best.min(ns);
-        if let (Some(a), Some(b)) = (cpu_start, thread_cpu_ns()) {
+        // schedstat advances at scheduler events only: ignore runs it did not see.
+        if let (Some(a), Some(b)) = (cpu_start, thread_cpu_ns())
+            && b > a
+        {
             best_cpu = best_cpu.min((b - a) / problems.len() as f64);
         }
     }
