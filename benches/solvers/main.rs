@@ -3,6 +3,7 @@
 use criterion::{criterion_group, criterion_main};
 
 mod geo;
+mod p3p;
 mod p3p_cosines;
 mod refine_pose;
 mod synthetic;
@@ -10,6 +11,7 @@ mod synthetic;
 criterion_group!(
     benches,
     geo::benches,
+    p3p::benches,
     p3p_cosines::benches,
     refine_pose::benches,
     synthetic::benches,
