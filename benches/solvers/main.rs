@@ -4,6 +4,8 @@ use criterion::{criterion_group, criterion_main};
 
 mod fix;
 mod geo;
+mod p3p;
+mod p3p_cosines;
 mod refine_pose;
 mod synthetic;
 
@@ -11,6 +13,8 @@ criterion_group!(
     benches,
     fix::benches,
     geo::benches,
+    p3p::benches,
+    p3p_cosines::benches,
     refine_pose::benches,
     synthetic::benches,
 );

@@ -149,7 +149,9 @@ impl P3pProblem {
 /// (position error in metres, rotation error angle in radians).
 pub fn pose_error(estimate: &Pose, truth: &Pose) -> (f64, f64) {
     let dp = (estimate.translation.vector - truth.translation.vector).norm();
-    let dr = (estimate.rotation.inverse() * truth.rotation).angle();
+    // `Rotation3::angle` takes an acos of the trace, which loses precision below ~1e-8 rad
+    // and is NaN when rounding puts the trace above 3; the log map is exact at any angle.
+    let dr = pnp::rotation_log(&(estimate.rotation.inverse() * truth.rotation)).norm();
     (dp, dr)
 }
 
@@ -184,6 +186,21 @@ mod tests {
         // E[angle²] = 2σ² for two tangent axes.
         let ratio = sum_sq / n as f64 / (2.0 * sigma * sigma);
         assert!((ratio - 1.0).abs() < 0.03, "ratio {ratio}");
+    }
+
+    #[test]
+    fn pose_error_is_finite_and_exact_for_tiny_rotations() {
+        let mut r = rng(3);
+        for _ in 0..10_000 {
+            let pose = random_pose(&mut r, 10.0);
+            let (dp, dr) = pose_error(&pose, &pose);
+            assert_eq!(dp, 0.0);
+            assert!(dr.is_finite() && dr < 1e-15, "{dr}");
+            let tiny = Rotation3::from_scaled_axis(random_unit_vector(&mut r) * 1e-10);
+            let turned = Pose::from_parts(pose.translation, tiny * pose.rotation);
+            let (_, dr) = pose_error(&turned, &pose);
+            assert!((dr - 1e-10).abs() < 1e-14, "{dr}");
+        }
     }
 
     #[test]

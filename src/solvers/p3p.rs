@@ -1,0 +1,531 @@
+//! Lambda Twist P3P for bearings all around the sphere.
+//!
+//! # Equation
+//! With unit bearings `yᵢ` (rig frame), world points `xᵢ` and unknown ranges `λᵢ > 0`, the
+//! rig-frame points `λᵢ yᵢ` must keep the world distances:
+//!
+//! ```text
+//! λᵢ² + λⱼ² − 2 bᵢⱼ λᵢ λⱼ = aᵢⱼ,   bᵢⱼ = yᵢ·yⱼ,  aᵢⱼ = |xᵢ − xⱼ|²,  (ij) ∈ {12, 13, 23}.
+//! ```
+//!
+//! Writing `Λ = (λ₁, λ₂, λ₃)` and `Mᵢⱼ` for the quadratic form of the left-hand side, the
+//! scale-free conics `D₁ = a₂₃M₁₂ − a₁₂M₂₃` and `D₂ = a₂₃M₁₃ − a₁₃M₂₃` satisfy
+//! `ΛᵀD₁Λ = ΛᵀD₂Λ = 0`. A real root `γ` of the cubic `det(D₁ + γD₂) = 0` gives a degenerate
+//! conic `D₀ = D₁ + γD₂`, a pair of lines through every solution. Its eigen-decomposition
+//! `D₀ = σ₁e₁e₁ᵀ + σ₂e₂e₂ᵀ` (σ₁σ₂ ≤ 0) splits it into the lines
+//! `(√|σ₁| e₁ ± √|σ₂| e₂)·Λ = 0`; on each line the other conic leaves a quadratic in the
+//! ratio of two ranges, and one distance equation fixes the scale. No quartic is solved.
+//! The ranges are then polished by Gauss-Newton (Newton) steps on the three distance
+//! equations, and the pose follows from the two congruent triangles: the rotation maps the
+//! orthonormal frame (edge 12, in-plane normal, plane normal) of the rig-frame triangle
+//! `λᵢyᵢ` onto that of the world triangle `xᵢ`, and the rig origin is `x₁ − R λ₁y₁`.
+//!
+//! # Omnidirectional bearings
+//! Nothing in the method assumes a bearing in front of a pinhole: only the dot products
+//! `bᵢⱼ` are used, so bearings anywhere on the sphere work (including angles above 90°).
+//! The only sign condition is the physical one, `λᵢ > 0` (the point lies ahead along its
+//! bearing), applied to every candidate.
+//!
+//! # Guards
+//! Every square root and division is guarded; degenerate input (zero, non-finite,
+//! parallel or antiparallel bearings, coincident or collinear points, a vanishing pencil)
+//! gives an empty list, a complex line pair or a negative discriminant gives no candidate
+//! from that branch, and a candidate that does not satisfy the distance equations after
+//! refinement (so would give a non-orthonormal rotation) or has a non-finite entry is
+//! dropped. The output therefore never contains NaN or infinity.
+//!
+//! # References
+//! - M. Persson and K. Nordberg, "Lambda Twist: An Accurate Fast Robust Perspective Three
+//!   Point (P3P) Solver", ECCV 2018.
+
+use super::cubic::outer_real_root;
+use crate::geometry::{Pose, PoseSolutions};
+use nalgebra::{Matrix3, Rotation3, Translation3, Vector3};
+
+/// Smallest sine of the angle between two bearings: closer (or antiparallel) bearings are
+/// a degenerate sample.
+pub const MIN_BEARING_SINE: f64 = 1e-9;
+
+/// Smallest ratio of twice the triangle area to the squared longest side of the three world
+/// points (about the height over the longest side): flatter triangles are collinear.
+pub const MIN_TRIANGLE_SHAPE: f64 = 1e-9;
+
+/// A pencil whose leading coefficient is this small relative to the others has its root at
+/// infinity: `D₂` itself is the degenerate conic.
+const CUBIC_LEADING_TOL: f64 = 1e-14;
+
+/// Relative tolerance below which a (slightly) negative quadratic discriminant is treated
+/// as a double root, and a (slightly) positive eigenvalue product as a double line.
+const DISCRIMINANT_TOL: f64 = 1e-12;
+
+/// Most Newton steps on the distance equations (the paper uses a few Gauss-Newton steps;
+/// the closed-form ranges are usually accurate to 1e-12 or better, so one step suffices).
+const REFINE_STEPS: usize = 3;
+
+/// Largest residual of the normalised distance equations (longest side 1) at which the
+/// ranges count as converged.
+const REFINE_CONVERGED: f64 = 1e-14;
+
+/// Largest residual of the normalised distance equations accepted in a solution; larger
+/// ones would make the recovered rotation measurably non-orthonormal.
+const MAX_RESIDUAL: f64 = 1e-9;
+
+/// A symmetric 3×3 matrix, stored as its upper triangle.
+#[derive(Clone, Copy, Debug)]
+struct Sym3 {
+    xx: f64,
+    xy: f64,
+    xz: f64,
+    yy: f64,
+    yz: f64,
+    zz: f64,
+}
+
+impl Sym3 {
+    /// The adjugate (transposed cofactor matrix), symmetric for a symmetric matrix.
+    #[inline(always)]
+    fn adj(&self) -> Self {
+        Self {
+            xx: self.yy * self.zz - self.yz * self.yz,
+            xy: self.xz * self.yz - self.xy * self.zz,
+            xz: self.xy * self.yz - self.xz * self.yy,
+            yy: self.xx * self.zz - self.xz * self.xz,
+            yz: self.xy * self.xz - self.xx * self.yz,
+            zz: self.xx * self.yy - self.xy * self.xy,
+        }
+    }
+
+    /// Frobenius inner product `Σᵢⱼ AᵢⱼBᵢⱼ`.
+    #[inline(always)]
+    fn inner(&self, o: &Self) -> f64 {
+        self.xx * o.xx
+            + self.yy * o.yy
+            + self.zz * o.zz
+            + 2.0 * (self.xy * o.xy + self.xz * o.xz + self.yz * o.yz)
+    }
+
+    /// Determinant, from a precomputed adjugate.
+    #[inline(always)]
+    fn det_with(&self, adj: &Self) -> f64 {
+        self.xx * adj.xx + self.xy * adj.xy + self.xz * adj.xz
+    }
+
+    /// `self + s · o`.
+    #[inline(always)]
+    fn add_scaled(&self, s: f64, o: &Self) -> Self {
+        Self {
+            xx: self.xx + s * o.xx,
+            xy: self.xy + s * o.xy,
+            xz: self.xz + s * o.xz,
+            yy: self.yy + s * o.yy,
+            yz: self.yz + s * o.yz,
+            zz: self.zz + s * o.zz,
+        }
+    }
+
+    /// `self · v`.
+    #[inline(always)]
+    fn mul(&self, v: &Vector3<f64>) -> Vector3<f64> {
+        Vector3::new(
+            self.xx * v.x + self.xy * v.y + self.xz * v.z,
+            self.xy * v.x + self.yy * v.y + self.yz * v.z,
+            self.xz * v.x + self.yz * v.y + self.zz * v.z,
+        )
+    }
+
+    /// Column `k` (0, 1 or 2).
+    #[inline(always)]
+    fn col(&self, k: usize) -> Vector3<f64> {
+        match k {
+            0 => Vector3::new(self.xx, self.xy, self.xz),
+            1 => Vector3::new(self.xy, self.yy, self.yz),
+            _ => Vector3::new(self.xz, self.yz, self.zz),
+        }
+    }
+
+    /// The diagonal.
+    #[inline(always)]
+    fn diag(&self) -> Vector3<f64> {
+        Vector3::new(self.xx, self.yy, self.zz)
+    }
+}
+
+/// `x > 0`, false for NaN: the guard form used before every square root and division.
+#[inline(always)]
+fn positive(x: f64) -> bool {
+    x > 0.0
+}
+
+/// Index of the entry of largest magnitude.
+#[inline(always)]
+fn argmax_abs(v: &Vector3<f64>) -> usize {
+    let (a, b, c) = (v.x.abs(), v.y.abs(), v.z.abs());
+    if a >= b {
+        if a >= c { 0 } else { 2 }
+    } else if b >= c {
+        1
+    } else {
+        2
+    }
+}
+
+/// The unit vector along `v`, or `None` if `v` is zero or not finite. Rescales vectors
+/// whose squared norm would under- or overflow.
+#[inline(always)]
+fn unit(v: &Vector3<f64>) -> Option<Vector3<f64>> {
+    let n2 = v.norm_squared();
+    if n2 > 1e-280 && n2 < 1e280 {
+        return Some(v * (1.0 / n2.sqrt()));
+    }
+    let m = v.amax();
+    if !(m > 0.0 && m.is_finite()) {
+        return None;
+    }
+    let w = v / m;
+    let n = w.norm();
+    Some(w / n)
+}
+
+/// Every pose of a rig that sees three world points along three bearings (P3P), by the
+/// Lambda Twist method, for bearings anywhere on the sphere.
+///
+/// Returns every real solution with positive ranges along all three bearings (at most
+/// four), each as a `world_from_rig` pose (rotation + rig origin in the world frame). An
+/// empty list means a degenerate sample (see the module documentation); no output ever
+/// contains NaN or infinity.
+///
+/// # Units
+/// Bearings: directions in the rig frame, any non-zero finite length (normalised inside).
+/// Points: metres in a Cartesian world frame. Poses: metres and rotation matrices.
+///
+/// # Example
+/// ```
+/// use nalgebra::Vector3;
+/// use vgps::geometry::{bearing_in_rig, Pose};
+/// // The rig sits at (10, -5, 2), rotated 0.3 rad about z; one landmark is behind it.
+/// let truth = Pose::new(Vector3::new(10.0, -5.0, 2.0), Vector3::new(0.0, 0.0, 0.3));
+/// let points = [
+///     Vector3::new(30.0, 0.0, 5.0),
+///     Vector3::new(-20.0, 4.0, 1.0),
+///     Vector3::new(12.0, 25.0, -3.0),
+/// ];
+/// let bearings = points.map(|p| bearing_in_rig(&truth, &p).unwrap());
+/// let solutions = vgps::solvers::p3p(&bearings, &points);
+/// let best = solutions
+///     .iter()
+///     .map(|s| (s.translation.vector - truth.translation.vector).norm())
+///     .fold(f64::INFINITY, f64::min);
+/// assert!(best < 1e-9);
+/// ```
+///
+/// # References
+/// M. Persson and K. Nordberg, "Lambda Twist: An Accurate Fast Robust Perspective Three
+/// Point (P3P) Solver", ECCV 2018.
+#[inline]
+pub fn p3p(
+    bearings_in_rig: &[Vector3<f64>; 3],
+    points_in_world: &[Vector3<f64>; 3],
+) -> PoseSolutions {
+    let mut solutions = PoseSolutions::new();
+
+    // --- Input checks and normalisation -------------------------------------------------
+    let (Some(y1), Some(y2), Some(y3)) = (
+        unit(&bearings_in_rig[0]),
+        unit(&bearings_in_rig[1]),
+        unit(&bearings_in_rig[2]),
+    ) else {
+        return solutions;
+    };
+    let min_sin2 = MIN_BEARING_SINE * MIN_BEARING_SINE;
+    if !(y1.cross(&y2).norm_squared() > min_sin2
+        && y1.cross(&y3).norm_squared() > min_sin2
+        && y2.cross(&y3).norm_squared() > min_sin2)
+    {
+        return solutions;
+    }
+    let [x1, x2, x3] = points_in_world;
+    let d12 = x1 - x2;
+    let d13 = x1 - x3;
+    let d23 = x2 - x3;
+    let (a12r, a13r, a23r) = (d12.norm_squared(), d13.norm_squared(), d23.norm_squared());
+    let normal = d12.cross(&d13);
+    let nn = normal.norm_squared();
+    let a_max = a12r.max(a13r).max(a23r);
+    // Also rejects NaN and infinite points (the comparisons are then false).
+    if !(nn.is_finite()
+        && a_max.is_finite()
+        && nn > MIN_TRIANGLE_SHAPE * MIN_TRIANGLE_SHAPE * a_max * a_max)
+    {
+        return solutions;
+    }
+    let inv_a = 1.0 / a_max;
+    let (a12, a13, a23) = (a12r * inv_a, a13r * inv_a, a23r * inv_a);
+    let (b12, b13, b23) = (y1.dot(&y2), y1.dot(&y3), y2.dot(&y3));
+
+    // --- The pencil of conics and one degenerate member -----------------------------------
+    let d1 = Sym3 {
+        xx: a23,
+        xy: -a23 * b12,
+        xz: 0.0,
+        yy: a23 - a12,
+        yz: a12 * b23,
+        zz: -a12,
+    };
+    let d2 = Sym3 {
+        xx: a23,
+        xy: 0.0,
+        xz: -a23 * b13,
+        yy: -a13,
+        yz: a13 * b23,
+        zz: a23 - a13,
+    };
+    let adj1 = d1.adj();
+    let adj2 = d2.adj();
+    // det(D1 + γ D2) = c3 γ³ + c2 γ² + c1 γ + c0.
+    let c3 = d2.det_with(&adj2);
+    let c2 = d1.inner(&adj2);
+    let c1 = adj1.inner(&d2);
+    let c0 = d1.det_with(&adj1);
+    let (d0, restrict) =
+        if c3.abs() <= CUBIC_LEADING_TOL * (c0.abs() + c1.abs() + c2.abs()) || c3 == 0.0 {
+            // Root at infinity: D2 is (numerically) degenerate itself.
+            (d2, d1)
+        } else {
+            let inv = 1.0 / c3;
+            let gamma = outer_real_root(c2 * inv, c1 * inv, c0 * inv);
+            if !gamma.is_finite() {
+                return solutions;
+            }
+            // On a line of D0, D1 = −γ D2: restrict the better-scaled one.
+            (
+                d1.add_scaled(gamma, &d2),
+                if gamma.abs() >= 1.0 { d1 } else { d2 },
+            )
+        };
+
+    // --- Eigen-decomposition of the rank-2 D0 -----------------------------------------------
+    // Characteristic polynomial σ(σ² − tσ + m) with t the trace and m the sum of the
+    // principal 2×2 minors (= σ₁σ₂).
+    let t = d0.xx + d0.yy + d0.zz;
+    let adj0 = d0.adj();
+    let scale2 = d0.inner(&d0);
+    let mut m = adj0.xx + adj0.yy + adj0.zz;
+    if m > DISCRIMINANT_TOL * scale2 {
+        // A complex-conjugate line pair: no real line through a solution.
+        return solutions;
+    }
+    m = m.min(0.0);
+    let sigma1 = 0.5 * t + (0.25 * t * t - m).sqrt().copysign(t);
+    if !positive(sigma1.abs()) {
+        return solutions;
+    }
+    let sigma2 = m / sigma1;
+    // Spectral projector of σ₁: P = σ₁e₁e₁ᵀ = (D0² − σ₂D0)/(σ₁ − σ₂); Q = D0 − P = σ₂e₂e₂ᵀ.
+    let gap = sigma1 - sigma2;
+    let d0sq = Sym3 {
+        xx: d0.col(0).norm_squared(),
+        xy: d0.col(0).dot(&d0.col(1)),
+        xz: d0.col(0).dot(&d0.col(2)),
+        yy: d0.col(1).norm_squared(),
+        yz: d0.col(1).dot(&d0.col(2)),
+        zz: d0.col(2).norm_squared(),
+    };
+    let inv_gap = 1.0 / gap;
+    let p = d0sq.add_scaled(-sigma2, &d0);
+    let p = Sym3 {
+        xx: p.xx * inv_gap,
+        xy: p.xy * inv_gap,
+        xz: p.xz * inv_gap,
+        yy: p.yy * inv_gap,
+        yz: p.yz * inv_gap,
+        zz: p.zz * inv_gap,
+    };
+    let q = d0.add_scaled(-1.0, &p);
+    let kp = argmax_abs(&p.diag());
+    let pkk = p.diag()[kp].abs();
+    if !positive(pkk) {
+        return solutions;
+    }
+    // g = √|σ₁| e₁ and h = √|σ₂| e₂ (up to sign).
+    let g = p.col(kp) * (1.0 / pkk.sqrt());
+    let kq = argmax_abs(&q.diag());
+    let qkk = q.diag()[kq].abs();
+    let h = if qkk > 0.0 {
+        q.col(kq) * (1.0 / qkk.sqrt())
+    } else {
+        Vector3::zeros()
+    };
+    if !(crate::geometry::is_finite(&g) && crate::geometry::is_finite(&h)) {
+        return solutions;
+    }
+
+    // --- World-side orthonormal frame of the triangle: (edge 12, in-plane, normal) ----------
+    let u1 = d12 * (1.0 / a12r.sqrt());
+    let u3 = normal * (1.0 / nn.sqrt());
+    let u2 = u3.cross(&u1);
+    let ys = [y1, y2, y3];
+    let eq = Equations {
+        a: [a12, a13, a23],
+        b: [b12, b13, b23],
+    };
+    // The longest side (normalised length 1) fixes the scale.
+    let (si, sj, sb) = if a12 >= a13 && a12 >= a23 {
+        (0, 1, b12)
+    } else if a13 >= a23 {
+        (0, 2, b13)
+    } else {
+        (1, 2, b23)
+    };
+    let scale = a_max.sqrt();
+
+    let n_lines = if h == Vector3::zeros() { 1 } else { 2 };
+    for line in 0..n_lines {
+        let u = if line == 0 { g + h } else { g - h };
+        // The plane u·Λ = 0 meets the open positive octant only if u has entries of both
+        // signs: skip lines that cannot carry positive ranges.
+        let (lo, hi) = (u.x.min(u.y).min(u.z), u.x.max(u.y).max(u.z));
+        if !(lo < 0.0 && hi > 0.0) {
+            continue;
+        }
+        // Two independent vectors spanning the plane u·Λ = 0 (u × eₖ for the two axes k
+        // other than the largest component of u).
+        let (va, vb) = match argmax_abs(&u) {
+            0 => (Vector3::new(-u.z, 0.0, u.x), Vector3::new(u.y, -u.x, 0.0)),
+            1 => (Vector3::new(0.0, u.z, -u.y), Vector3::new(u.y, -u.x, 0.0)),
+            _ => (Vector3::new(0.0, u.z, -u.y), Vector3::new(-u.z, 0.0, u.x)),
+        };
+        // Λ = α va + β vb on the other conic: A α² + 2B αβ + C β² = 0.
+        let cva = restrict.mul(&va);
+        let qa = va.dot(&cva);
+        let qb = vb.dot(&cva);
+        let qc = vb.dot(&restrict.mul(&vb));
+        let disc = qb * qb - qa * qc;
+        if disc < -DISCRIMINANT_TOL * (qb * qb + (qa * qc).abs()) {
+            continue;
+        }
+        let sq = disc.max(0.0).sqrt();
+        let w = -(qb + sq.copysign(qb));
+        // The two roots (α, β) = (w, A) and (C, w), division-free.
+        let roots = [(w, qa), (qc, w)];
+        let n_roots = if sq > 0.0 { 2 } else { 1 };
+        // A double root: keep whichever representation is not (nearly) zero.
+        let first = usize::from(n_roots == 1 && qa.abs() < qc.abs());
+        for &(alpha, beta) in &roots[first..first + n_roots] {
+            let mut lam = va * alpha + vb * beta;
+            // Same sign for all three ranges, else no physical solution.
+            if lam.x < 0.0 {
+                lam = -lam;
+            }
+            if !(lam.x > 0.0 && lam.y > 0.0 && lam.z > 0.0) {
+                continue;
+            }
+            let (li, lj) = (lam[si], lam[sj]);
+            let side2 = li * li + lj * lj - 2.0 * sb * li * lj;
+            if !positive(side2) {
+                continue;
+            }
+            lam *= 1.0 / side2.sqrt();
+            let Some(lam) = eq.refine(lam) else {
+                continue;
+            };
+            let lam = lam * scale;
+            if !(lam.x > 0.0 && lam.y > 0.0 && lam.z > 0.0) {
+                continue;
+            }
+            // The same frame built from the rig-frame triangle; world_from_rig maps one onto
+            // the other. Built from orthonormal frames, the rotation is orthonormal with
+            // det +1 even when the triangle is thin.
+            let p1 = ys[0] * lam.x;
+            let v1 = p1 - ys[1] * lam.y;
+            let v2 = p1 - ys[2] * lam.z;
+            let v3 = v1.cross(&v2);
+            let (n1, n3) = (v1.norm_squared(), v3.norm_squared());
+            if !(n1 > 0.0 && n3 > 0.0) {
+                continue;
+            }
+            let w1 = v1 * (1.0 / n1.sqrt());
+            let w3 = v3 * (1.0 / n3.sqrt());
+            let w2 = w3.cross(&w1);
+            // world_from_rig = [u1 u2 u3] [w1 w2 w3]ᵀ.
+            let row = |i: usize| {
+                Vector3::new(
+                    u1[i] * w1.x + u2[i] * w2.x + u3[i] * w3.x,
+                    u1[i] * w1.y + u2[i] * w2.y + u3[i] * w3.y,
+                    u1[i] * w1.z + u2[i] * w2.z + u3[i] * w3.z,
+                )
+            };
+            let (q0, q1, q2) = (row(0), row(1), row(2));
+            let origin = x1 - Vector3::new(q0.dot(&p1), q1.dot(&p1), q2.dot(&p1));
+            // One test for all twelve entries: a NaN or infinity makes the sum non-finite
+            // (the entries are bounded, so the sum cannot overflow on its own).
+            let total = q0.sum() + q1.sum() + q2.sum() + origin.sum();
+            if !total.is_finite() {
+                continue;
+            }
+            let rot = Matrix3::from_rows(&[q0.transpose(), q1.transpose(), q2.transpose()]);
+            let _ = solutions.try_push(Pose::from_parts(
+                Translation3::from(origin),
+                Rotation3::from_matrix_unchecked(rot),
+            ));
+        }
+    }
+    solutions
+}
+
+/// The three normalised distance equations `λᵢ² + λⱼ² − 2bᵢⱼλᵢλⱼ = aᵢⱼ`, ordered 12, 13, 23.
+struct Equations {
+    a: [f64; 3],
+    b: [f64; 3],
+}
+
+impl Equations {
+    /// Residuals of the three equations.
+    #[inline(always)]
+    fn residual(&self, l: &Vector3<f64>) -> [f64; 3] {
+        let [a12, a13, a23] = self.a;
+        let [b12, b13, b23] = self.b;
+        [
+            l.x * l.x + l.y * l.y - 2.0 * b12 * l.x * l.y - a12,
+            l.x * l.x + l.z * l.z - 2.0 * b13 * l.x * l.z - a13,
+            l.y * l.y + l.z * l.z - 2.0 * b23 * l.y * l.z - a23,
+        ]
+    }
+
+    /// At most [`REFINE_STEPS`] Newton steps on the three equations (closed-form inverse of
+    /// the sparse Jacobian), stopping once converged. Returns `None` if the ranges do not
+    /// satisfy the equations to [`MAX_RESIDUAL`].
+    #[inline(always)]
+    fn refine(&self, mut l: Vector3<f64>) -> Option<Vector3<f64>> {
+        let [b12, b13, b23] = self.b;
+        let mut step_count = 0;
+        loop {
+            let [r1, r2, r3] = self.residual(&l);
+            let worst = r1.abs().max(r2.abs()).max(r3.abs());
+            if worst <= REFINE_CONVERGED {
+                return Some(l);
+            }
+            if step_count == REFINE_STEPS {
+                return (worst <= MAX_RESIDUAL).then_some(l);
+            }
+            step_count += 1;
+            // Half the Jacobian: rows ∂/∂λ of equations 12, 13, 23.
+            let x11 = l.x - b12 * l.y;
+            let x12 = l.y - b12 * l.x;
+            let x21 = l.x - b13 * l.z;
+            let x23 = l.z - b13 * l.x;
+            let x32 = l.y - b23 * l.z;
+            let x33 = l.z - b23 * l.y;
+            let det = -(x11 * x23 * x32 + x12 * x21 * x33);
+            let k = -0.5 / det;
+            let step = Vector3::new(
+                (-x23 * x32 * r1 - x12 * x33 * r2 + x12 * x23 * r3) * k,
+                (-x21 * x33 * r1 + x11 * x33 * r2 - x11 * x23 * r3) * k,
+                (x21 * x32 * r1 - x11 * x32 * r2 - x12 * x21 * r3) * k,
+            );
+            if !crate::geometry::is_finite(&step) {
+                return (worst <= MAX_RESIDUAL).then_some(l);
+            }
+            l += step;
+        }
+    }
+}
