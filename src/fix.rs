@@ -793,8 +793,7 @@ mod tests {
             assert_eq!(fix.status, FixStatus::Ok, "n = {n}: {}", fix.message);
             let e = fix.estimate.unwrap();
             let (dp, dr) = crate::synthetic::pose_error(&e.world_from_rig, &truth);
-            // The rotation angle of `pose_error` comes from an arccosine: ~1e-8 rad resolution.
-            assert!(dp < 1e-7 && dr < 1e-7, "n = {n}: {dp} m, {dr} rad");
+            assert!(dp < 1e-7 && dr < 1e-9, "n = {n}: {dp} m, {dr} rad");
             assert_eq!(e.n_inliers, n);
             assert!(fix.inliers.iter().all(|&b| b));
             assert!(e.covariance.cholesky().is_some());
