@@ -21,8 +21,8 @@
 //! f = 600 px: far below the 0.01 px accuracy target, at half the size of `f64`.
 
 use super::{
-    CalibrationError, CameraModel, Pixel, in_image_rectangle, normalisation_jacobian,
-    pixel_jacobian_from_bearing_jacobian,
+    CalibrationError, CameraModel, Pixel, clamp_to_image, in_image_rectangle,
+    normalisation_jacobian, pixel_jacobian_from_bearing_jacobian,
 };
 use nalgebra::{Matrix2x3, Matrix3x2, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
@@ -78,7 +78,8 @@ pub struct LutParams {
 /// Pixel → bearing: bilinear interpolation of the four nodes of the pixel's cell, then
 /// renormalisation. Bearing → pixel (source-model free): the best node of a coarse grid of at
 /// most [`LUT_COARSE_SIDE`]² nodes (largest dot product with the direction), a hill climb on
-/// the full node grid, then Newton's method on the piecewise-bilinear map: with `t₁, t₂` a
+/// neighbouring cells (cell centres, so that the identical nodes of a panorama's pole row
+/// cannot stall it), then Newton's method on the piecewise-bilinear map: with `t₁, t₂` a
 /// basis of the plane normal to the direction `b`, solve `(t₁·B(p), t₂·B(p)) = 0` with the
 /// analytic 2×2 Jacobian, to a step below [`LUT_INVERSE_TOLERANCE`] px; accepted when the
 /// pixel is inside the image and `∠(B(p), b) ≤` [`LUT_INVERSE_RESIDUAL`].
@@ -282,23 +283,29 @@ impl Lut {
         (b, du, dv)
     }
 
-    /// The node with the largest dot product with `b`: coarse grid, then hill climb.
-    fn nearest_node(&self, b: &Vector3<f64>) -> (usize, usize) {
+    /// Unit mean of the four nodes of cell `(i, j)` (its centre's direction, up to the
+    /// interpolation error).
+    #[inline]
+    fn cell_direction(&self, i: usize, j: usize) -> Vector3<f64> {
+        let sum =
+            self.node(i, j) + self.node(i + 1, j) + self.node(i, j + 1) + self.node(i + 1, j + 1);
+        let n = sum.norm();
+        if n > 0.0 { sum / n } else { sum }
+    }
+
+    /// The cell whose centre direction has the largest dot product with `b`: a coarse grid
+    /// of cells, then a hill climb over neighbouring cells. Cells rather than nodes, so that
+    /// a row of identical nodes (a panorama's pole) cannot stall the climb.
+    fn nearest_cell(&self, b: &Vector3<f64>) -> (usize, usize) {
+        let (ncols, nrows) = (self.cols - 1, self.rows - 1);
         let stride = self.coarse_stride;
         let mut best = (0, 0);
         let mut best_dot = f64::NEG_INFINITY;
-        let last = |n: usize| n - 1;
-        let cols: Vec<usize> = (0..self.cols)
-            .step_by(stride)
-            .chain([last(self.cols)])
-            .collect();
-        let rows: Vec<usize> = (0..self.rows)
-            .step_by(stride)
-            .chain([last(self.rows)])
-            .collect();
+        let cols: Vec<usize> = (0..ncols).step_by(stride).chain([ncols - 1]).collect();
+        let rows: Vec<usize> = (0..nrows).step_by(stride).chain([nrows - 1]).collect();
         for &j in &rows {
             for &i in &cols {
-                let d = self.node(i, j).dot(b);
+                let d = self.cell_direction(i, j).dot(b);
                 if d > best_dot {
                     best_dot = d;
                     best = (i, j);
@@ -306,12 +313,12 @@ impl Lut {
             }
         }
         // Hill climb over the 8 neighbours; each move strictly increases the dot product.
-        for _ in 0..(self.cols + self.rows) {
+        for _ in 0..(ncols + nrows) {
             let (i0, j0) = best;
             let mut moved = false;
-            for j in j0.saturating_sub(1)..=(j0 + 1).min(self.rows - 1) {
-                for i in i0.saturating_sub(1)..=(i0 + 1).min(self.cols - 1) {
-                    let d = self.node(i, j).dot(b);
+            for j in j0.saturating_sub(1)..=(j0 + 1).min(nrows - 1) {
+                for i in i0.saturating_sub(1)..=(i0 + 1).min(ncols - 1) {
+                    let d = self.cell_direction(i, j).dot(b);
                     if d > best_dot {
                         best_dot = d;
                         best = (i, j);
@@ -329,7 +336,7 @@ impl Lut {
     /// Bearing → pixel by Newton's method on the piecewise-bilinear map.
     fn invert(&self, direction: &Vector3<f64>) -> Option<Pixel> {
         let b = crate::geometry::try_unit(direction)?;
-        let (i, j) = self.nearest_node(&b);
+        let (i, j) = self.nearest_cell(&b);
         // A basis of the plane normal to b.
         let helper = if b.x.abs() < 0.6 {
             Vector3::x()
@@ -341,7 +348,7 @@ impl Lut {
         let t1 = b.cross(&helper).normalize();
         let t2 = b.cross(&t1);
         let max_step = f64::from(self.params.step);
-        let mut p = self.node_pixel(i, j);
+        let mut p = 0.5 * (self.node_pixel(i, j) + self.node_pixel(i + 1, j + 1));
         let mut converged = false;
         for _ in 0..MAX_LUT_INVERSE_ITERATIONS {
             let (bp, du, dv) = self.interpolate(&p);
@@ -362,9 +369,10 @@ impl Lut {
                 break;
             }
         }
-        if !converged || !in_image_rectangle(self.params.width, self.params.height, &p) {
+        if !converged {
             return None;
         }
+        let p = clamp_to_image(self.params.width, self.params.height, &p)?;
         let (bp, _, _) = self.interpolate(&p);
         (crate::geometry::angle_between(&bp, &b) <= LUT_INVERSE_RESIDUAL).then_some(p)
     }

@@ -177,6 +177,23 @@ pub fn in_image_rectangle(width: u32, height: u32, pixel: &Pixel) -> bool {
         && pixel.y <= f64::from(height) - 0.5
 }
 
+/// A projected pixel up to this far (pixels) outside the image rectangle is clamped onto its
+/// edge instead of rejected, so that pixels on the edge survive a round trip's rounding.
+pub const IMAGE_EDGE_TOLERANCE: f64 = 1e-9;
+
+/// `pixel` clamped onto the image rectangle when it lies inside it or within
+/// [`IMAGE_EDGE_TOLERANCE`] of it; `None` otherwise (or when not finite).
+#[inline]
+pub fn clamp_to_image(width: u32, height: u32, pixel: &Pixel) -> Option<Pixel> {
+    let (w, h) = (f64::from(width) - 0.5, f64::from(height) - 0.5);
+    let t = IMAGE_EDGE_TOLERANCE;
+    if pixel.x >= -0.5 - t && pixel.x <= w + t && pixel.y >= -0.5 - t && pixel.y <= h + t {
+        Some(Vector2::new(pixel.x.clamp(-0.5, w), pixel.y.clamp(-0.5, h)))
+    } else {
+        None
+    }
+}
+
 /// Number of scan steps of the validity-domain search (over an angle range, e.g. `(0, π/2)`
 /// for the pinhole: a resolution of 0.02°).
 pub const DOMAIN_SCAN_STEPS: usize = 4096;

@@ -2,7 +2,7 @@
 
 use super::{
     CalibrationError, CameraModel, Pixel, bearing_jacobian_from_pixel_jacobian, check_finite,
-    check_positive, check_size, first_non_positive, in_image_rectangle,
+    check_positive, check_size, clamp_to_image, first_non_positive, in_image_rectangle,
 };
 use nalgebra::{Matrix2, Matrix2x3, Matrix3x2, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
@@ -263,10 +263,11 @@ impl Pinhole {
         } else {
             (Vector2::new(x, y), Matrix2::identity())
         };
-        let pixel = Vector2::new(p.fx * d.x + p.cx, p.fy * d.y + p.cy);
-        if !in_image_rectangle(p.width, p.height, &pixel) {
-            return None;
-        }
+        let pixel = clamp_to_image(
+            p.width,
+            p.height,
+            &Vector2::new(p.fx * d.x + p.cx, p.fy * d.y + p.cy),
+        )?;
         let scale = Matrix2::new(p.fx, 0.0, 0.0, p.fy);
         Some((pixel, scale * j))
     }
@@ -325,8 +326,11 @@ impl CameraModel for Pinhole {
         } else {
             Vector2::new(x, y)
         };
-        let pixel = Vector2::new(p.fx * d.x + p.cx, p.fy * d.y + p.cy);
-        in_image_rectangle(p.width, p.height, &pixel).then_some(pixel)
+        clamp_to_image(
+            p.width,
+            p.height,
+            &Vector2::new(p.fx * d.x + p.cx, p.fy * d.y + p.cy),
+        )
     }
 
     fn try_bearing_with_jacobian(&self, pixel: &Pixel) -> Option<(Vector3<f64>, Matrix3x2<f64>)> {
