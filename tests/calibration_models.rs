@@ -732,3 +732,45 @@ fn rig_errors() {
         "the panorama placement is a rotation"
     );
 }
+
+/// Agreement with OpenCV (`cv2.undistortPoints`, `cv2.fisheye.undistortPoints`) on the
+/// stored reference written by `bench/peers/opencv_undistort.py`.
+#[test]
+fn agrees_with_opencv_undistort_points() {
+    const MAX_ANGLE_RAD: f64 = 1e-6;
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data");
+    let json = std::fs::read_to_string(dir.join("opencv_undistort_cameras.json")).unwrap();
+    let cameras: std::collections::BTreeMap<String, Camera> = serde_json::from_str(&json).unwrap();
+    // The reference cameras are the example ones.
+    assert_eq!(cameras["ladybug2"], Camera::from(ladybug2_pinhole()));
+    assert_eq!(cameras["fisheye_opencv"], Camera::from(opencv_fisheye()));
+    let mut reader = csv::ReaderBuilder::new()
+        .comment(Some(b'#'))
+        .from_path(dir.join("opencv_undistort_reference.csv"))
+        .unwrap();
+    let mut worst: std::collections::BTreeMap<String, (usize, f64)> = Default::default();
+    for record in reader.records() {
+        let r = record.unwrap();
+        let name = r[0].to_string();
+        let f = |k: usize| r[k].parse::<f64>().unwrap();
+        let (u, v, x, y) = (f(1), f(2), f(3), f(4));
+        let camera = &cameras[&name];
+        let ours = camera
+            .try_bearing(&Vector2::new(u, v))
+            .unwrap_or_else(|| panic!("{name}: no bearing at ({u}, {v})"));
+        let opencv = Vector3::new(x, y, 1.0).normalize();
+        let angle = vgps::geometry::angle_between(&ours, &opencv);
+        let entry = worst.entry(name.clone()).or_default();
+        entry.0 += 1;
+        entry.1 = entry.1.max(angle);
+        assert!(
+            angle <= MAX_ANGLE_RAD,
+            "{name} ({u}, {v}): {angle:e} rad from OpenCV"
+        );
+    }
+    for (name, (count, angle)) in &worst {
+        println!("OpenCV {name}: {count} points, worst {angle:.2e} rad");
+        assert!(*count >= 100, "{name}: only {count} reference points");
+    }
+    assert_eq!(worst.len(), 3);
+}
