@@ -54,6 +54,10 @@ pub const LUT_INVERSE_RESIDUAL: f64 = 1e-9;
 /// nodes per side.
 pub const LUT_COARSE_SIDE: usize = 24;
 
+/// Grids with at least this many nodes are built on several threads by
+/// [`Lut::from_model`].
+pub const LUT_PARALLEL_MIN_NODES: usize = 16_384;
+
 /// Largest number of grid nodes a LUT may have (2²⁸, a 3 GiB table).
 pub const MAX_LUT_NODES: u64 = 1 << 28;
 
@@ -103,6 +107,8 @@ pub struct Lut {
     cols: usize,
     rows: usize,
     coarse_stride: usize,
+    u_axis: Axis,
+    v_axis: Axis,
 }
 
 /// `(cols, rows)` of the node grid, or `None` when too large.
@@ -160,17 +166,50 @@ fn to_f64(b: &[f32; 3]) -> Vector3<f64> {
     Vector3::new(f64::from(b[0]), f64::from(b[1]), f64::from(b[2]))
 }
 
-/// Cell index, fraction within the cell and cell width along one axis (the fraction is
-/// unclamped: outside the image it extrapolates the border cell).
-#[inline]
-fn locate(coordinate: f64, step: u32, extent: u32, cells: usize) -> (usize, f64, f64) {
-    let a = coordinate + 0.5;
-    let s = f64::from(step);
-    // `as usize` saturates: negative and NaN go to 0.
-    let i = ((a / s) as usize).min(cells - 1);
-    let start = i as f64 * s;
-    let width = (f64::from(extent) - start).min(s);
-    (i, (a - start) / width, width)
+/// Cell look-up along one axis: uniform cells of `step` pixels, the last one possibly
+/// narrower.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Axis {
+    /// Number of cells (nodes − 1, ≥ 1).
+    cells: usize,
+    /// 1 / step.
+    inv_step: f64,
+    /// Offset (from the image edge at −½) of the last cell's first node.
+    last_start: f64,
+    /// 1 / width of the last cell.
+    inv_last_width: f64,
+}
+
+impl Axis {
+    fn new(extent: u32, step: u32, nodes: usize) -> Self {
+        let cells = nodes - 1;
+        let last_start = (cells - 1) as f64 * f64::from(step);
+        Self {
+            cells,
+            inv_step: 1.0 / f64::from(step),
+            last_start,
+            inv_last_width: 1.0 / (f64::from(extent) - last_start),
+        }
+    }
+
+    /// Cell index, fraction within the cell and 1 / cell width. The fraction is unclamped:
+    /// outside the image it extrapolates the border cell.
+    #[inline]
+    fn locate(&self, coordinate: f64) -> (usize, f64, f64) {
+        let a = coordinate + 0.5;
+        let f = a * self.inv_step;
+        // `as usize` saturates: negative and NaN go to 0.
+        let i = f as usize;
+        if i + 1 < self.cells {
+            (i, f - i as f64, self.inv_step)
+        } else {
+            (
+                self.cells - 1,
+                (a - self.last_start) * self.inv_last_width,
+                self.inv_last_width,
+            )
+        }
+    }
 }
 
 impl Lut {
@@ -188,6 +227,8 @@ impl Lut {
     fn from_validated(params: LutParams, cols: usize, rows: usize) -> Self {
         let coarse_stride = cols.max(rows).div_ceil(LUT_COARSE_SIDE).max(1);
         Self {
+            u_axis: Axis::new(params.width, params.step, cols),
+            v_axis: Axis::new(params.height, params.step, rows),
             params,
             cols,
             rows,
@@ -197,10 +238,13 @@ impl Lut {
 
     /// Samples `model` at every node of a grid of step `step` pixels.
     ///
+    /// Grids of at least [`LUT_PARALLEL_MIN_NODES`] nodes are filled by up to
+    /// `std::thread::available_parallelism()` scoped threads, one band of rows each.
+    ///
     /// # Errors
     /// [`CalibrationError::LutBuild`] when the step is zero, the grid too large or the model
     /// has no bearing at some node (e.g. outside a fisheye's image circle).
-    pub fn from_model<M: CameraModel + ?Sized>(
+    pub fn from_model<M: CameraModel + Sync + ?Sized>(
         model: &M,
         step: u32,
     ) -> Result<Self, CalibrationError> {
@@ -209,18 +253,48 @@ impl Lut {
             grid_size(width, height, step).ok_or_else(|| CalibrationError::LutBuild {
                 reason: format!("size {width}×{height} with step {step} is empty or too large"),
             })?;
-        let mut bearings = Vec::with_capacity(cols * rows);
-        for j in 0..rows {
-            let v = -0.5 + f64::from(height).min((j as f64) * f64::from(step));
-            for i in 0..cols {
+        let mut bearings = vec![[0.0f32; 3]; cols * rows];
+        let threads = if cols * rows >= LUT_PARALLEL_MIN_NODES {
+            std::thread::available_parallelism().map_or(1, |n| n.get())
+        } else {
+            1
+        };
+        let rows_per_band = rows.div_ceil(threads.clamp(1, rows));
+        // Fills the rows of one band, starting at row `first_row`.
+        let fill = |band: &mut [[f32; 3]], first_row: usize| -> Result<(), CalibrationError> {
+            for (k, out) in band.iter_mut().enumerate() {
+                let (i, j) = (k % cols, first_row + k / cols);
                 let u = -0.5 + f64::from(width).min((i as f64) * f64::from(step));
+                let v = -0.5 + f64::from(height).min((j as f64) * f64::from(step));
                 let b = model.try_bearing(&Vector2::new(u, v)).ok_or_else(|| {
                     CalibrationError::LutBuild {
                         reason: format!("the source model has no bearing at node pixel ({u}, {v})"),
                     }
                 })?;
-                bearings.push([b.x as f32, b.y as f32, b.z as f32]);
+                *out = [b.x as f32, b.y as f32, b.z as f32];
             }
+            Ok(())
+        };
+        if rows_per_band >= rows {
+            fill(&mut bearings, 0)?;
+        } else {
+            std::thread::scope(|scope| {
+                let handles: Vec<_> = bearings
+                    .chunks_mut(rows_per_band * cols)
+                    .enumerate()
+                    .map(|(b, band)| {
+                        let fill = &fill;
+                        scope.spawn(move || fill(band, b * rows_per_band))
+                    })
+                    .collect();
+                handles.into_iter().try_for_each(|h| {
+                    h.join().unwrap_or_else(|_| {
+                        Err(CalibrationError::LutBuild {
+                            reason: "a LUT worker thread panicked".into(),
+                        })
+                    })
+                })
+            })?;
         }
         let params = LutParams {
             width,
@@ -268,8 +342,8 @@ impl Lut {
     #[inline]
     fn interpolate(&self, pixel: &Pixel) -> (Vector3<f64>, Vector3<f64>, Vector3<f64>) {
         let p = &self.params;
-        let (i, t, wu) = locate(pixel.x, p.step, p.width, self.cols - 1);
-        let (j, r, wv) = locate(pixel.y, p.step, p.height, self.rows - 1);
+        let (i, t, inv_wu) = self.u_axis.locate(pixel.x);
+        let (j, r, inv_wv) = self.v_axis.locate(pixel.y);
         let base = j * self.cols + i;
         let b00 = to_f64(&p.bearings[base]);
         let b10 = to_f64(&p.bearings[base + 1]);
@@ -278,8 +352,8 @@ impl Lut {
         let top = b00 + (b10 - b00) * t;
         let bottom = b01 + (b11 - b01) * t;
         let b = top + (bottom - top) * r;
-        let du = ((b10 - b00) * (1.0 - r) + (b11 - b01) * r) / wu;
-        let dv = (bottom - top) / wv;
+        let du = ((b10 - b00) * (1.0 - r) + (b11 - b01) * r) * inv_wu;
+        let dv = (bottom - top) * inv_wv;
         (b, du, dv)
     }
 

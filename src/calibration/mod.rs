@@ -53,11 +53,11 @@ mod pinhole;
 mod rig;
 
 pub use camera::Camera;
-pub use equirectangular::{Equirectangular, EquirectangularParams, rig_from_panorama};
-pub use kannala_brandt::{KannalaBrandt, KannalaBrandtParams};
-pub use lut::{LUT_FILE_VERSION, LUT_HEADER_BYTES, LUT_MAGIC, LUT_UNIT_TOLERANCE, Lut, LutParams};
-pub use pinhole::{Pinhole, PinholeParams, RadialTangential};
-pub use rig::{ROTATION_TOLERANCE, Rig, RigCamera, RigPixel};
+pub use equirectangular::*;
+pub use kannala_brandt::*;
+pub use lut::*;
+pub use pinhole::*;
+pub use rig::*;
 
 use nalgebra::{Matrix2, Matrix2x3, Matrix3, Matrix3x2, Vector2, Vector3};
 use thiserror::Error;

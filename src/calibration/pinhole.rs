@@ -218,7 +218,15 @@ impl Pinhole {
             return Some(xd);
         }
         let dist = &self.params.distortion;
-        let mut x = xd;
+        // First guess: undo the radial factor evaluated at the distorted radius (saves about
+        // one Newton iteration over starting at x_d for strong barrel distortion).
+        let rd2 = xd.norm_squared();
+        let radial = 1.0 + rd2 * (dist.k1 + rd2 * (dist.k2 + rd2 * dist.k3));
+        let mut x = if radial > 0.0 && radial.is_finite() {
+            xd / radial
+        } else {
+            xd
+        };
         for _ in 0..MAX_UNDISTORT_ITERATIONS {
             let (d, j) = dist.distort_with_jacobian(x.x, x.y);
             let r = d - xd;
@@ -233,12 +241,9 @@ impl Pinhole {
             );
             x -= step;
             if step.x.abs() <= UNDISTORT_TOLERANCE && step.y.abs() <= UNDISTORT_TOLERANCE {
-                let r2 = x.norm_squared();
-                if !(r2 < self.r2_max) {
-                    return None;
-                }
-                let (d, j) = dist.distort_with_jacobian(x.x, x.y);
-                if (d - xd).norm() > UNDISTORT_RESIDUAL || !(j.determinant() > 0.0) {
+                // Converged: the residual before this last step is |J δ| ≤ ~1e-12 already,
+                // and the Jacobian there had a positive determinant.
+                if !(x.norm_squared() < self.r2_max) || r.norm() > UNDISTORT_RESIDUAL {
                     return None;
                 }
                 return Some(x);

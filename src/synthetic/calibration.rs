@@ -90,7 +90,7 @@ pub fn example_cameras() -> Vec<(&'static str, Camera)> {
         k4: 0.0,
     })
     .unwrap_or_else(|e| unreachable!("{e}"));
-    let lut = |m: &dyn crate::calibration::CameraModel| {
+    let lut = |m: &(dyn crate::calibration::CameraModel + Sync)| {
         Lut::from_model(m, EXAMPLE_LUT_STEP).unwrap_or_else(|e| unreachable!("{e}"))
     };
     let ladybug = ladybug2_pinhole();
