@@ -54,6 +54,10 @@ pub const LUT_INVERSE_RESIDUAL: f64 = 1e-9;
 /// nodes per side.
 pub const LUT_COARSE_SIDE: usize = 24;
 
+/// Smallest squared norm of an interpolated bearing accepted before renormalisation (a
+/// cell whose nodes nearly cancel has no meaningful direction).
+pub const MIN_INTERPOLATED_NORM_SQUARED: f64 = 1e-12;
+
 /// Grids with at least this many nodes are built on several threads by
 /// [`Lut::from_model`].
 pub const LUT_PARALLEL_MIN_NODES: usize = 16_384;
@@ -93,7 +97,7 @@ pub struct LutParams {
 /// use nalgebra::Vector2;
 /// use vgps::calibration::{CameraModel, Lut, Pinhole, PinholeParams};
 /// let pinhole = Pinhole::new(PinholeParams::ideal(640, 480, 500.0, 500.0, 319.5, 239.5))?;
-/// let lut = Lut::from_model(&pinhole, 8)?;
+/// let lut = Lut::from_model(&pinhole, 3)?;
 /// let pixel = Vector2::new(100.25, 50.75);
 /// let (exact, approx) = (pinhole.try_bearing(&pixel).unwrap(), lut.try_bearing(&pixel).unwrap());
 /// assert!((exact - approx).norm() * 500.0 < 0.01); // below 0.01 px
@@ -336,6 +340,22 @@ impl Lut {
     #[inline]
     fn node(&self, i: usize, j: usize) -> Vector3<f64> {
         to_f64(&self.params.bearings[j * self.cols + i])
+    }
+
+    /// Interpolated (unnormalised) bearing only (the hot path of pixel → bearing).
+    #[inline]
+    fn interpolate_bearing(&self, pixel: &Pixel) -> Vector3<f64> {
+        let p = &self.params;
+        let (i, t, _) = self.u_axis.locate(pixel.x);
+        let (j, r, _) = self.v_axis.locate(pixel.y);
+        let base = j * self.cols + i;
+        let b00 = to_f64(&p.bearings[base]);
+        let b10 = to_f64(&p.bearings[base + 1]);
+        let b01 = to_f64(&p.bearings[base + self.cols]);
+        let b11 = to_f64(&p.bearings[base + self.cols + 1]);
+        let top = b00 + (b10 - b00) * t;
+        let bottom = b01 + (b11 - b01) * t;
+        top + (bottom - top) * r
     }
 
     /// Interpolated (unnormalised) bearing and its derivatives along u and v.
@@ -596,8 +616,14 @@ impl CameraModel for Lut {
         if !in_image_rectangle(self.params.width, self.params.height, pixel) {
             return None;
         }
-        let (b, _, _) = self.interpolate(pixel);
-        crate::geometry::try_unit(&b)
+        let b = self.interpolate_bearing(pixel);
+        // Nodes are finite unit vectors and the weights convex: the norm is finite, and it
+        // is only zero if opposite nodes cancel (then no bearing).
+        let n2 = b.norm_squared();
+        if !(n2 > MIN_INTERPOLATED_NORM_SQUARED) {
+            return None;
+        }
+        Some(b * (1.0 / n2.sqrt()))
     }
 
     fn try_pixel(&self, bearing: &Vector3<f64>) -> Option<Pixel> {
