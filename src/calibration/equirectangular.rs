@@ -91,8 +91,9 @@ fn small_sin_cos(d: f64) -> (f64, f64) {
 /// nearest tabulated centre to `coordinate` and `delta = (coordinate − k) · per_pixel`.
 #[inline]
 fn table_sin_cos(table: &[(f64, f64)], coordinate: f64, per_pixel: f64, angle: f64) -> (f64, f64) {
-    // `as usize` saturates: −0.5 rounds to −1 and goes to 0.
-    let k = (coordinate.round() as usize).min(table.len() - 1);
+    // Nearest centre without `f64::round` (a libm call on baseline x86-64); `as usize`
+    // truncates towards zero and saturates, and the coordinate is ≥ −½ here.
+    let k = ((coordinate + 0.5) as usize).min(table.len() - 1);
     let delta = (coordinate - k as f64) * per_pixel;
     if delta.abs() > EQUIRECTANGULAR_TABLE_MAX_OFFSET {
         return angle.sin_cos();

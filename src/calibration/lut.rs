@@ -111,6 +111,8 @@ pub struct Lut {
     cols: usize,
     rows: usize,
     coarse_stride: usize,
+    /// The coarse inverse grid: cell `(i, j)` and its mean node direction.
+    coarse: Vec<(usize, usize, Vector3<f64>)>,
     u_axis: Axis,
     v_axis: Axis,
 }
@@ -230,14 +232,30 @@ impl Lut {
 
     fn from_validated(params: LutParams, cols: usize, rows: usize) -> Self {
         let coarse_stride = cols.max(rows).div_ceil(LUT_COARSE_SIDE).max(1);
-        Self {
+        let mut lut = Self {
             u_axis: Axis::new(params.width, params.step, cols),
             v_axis: Axis::new(params.height, params.step, rows),
             params,
             cols,
             rows,
             coarse_stride,
-        }
+            coarse: Vec::new(),
+        };
+        let (ncols, nrows) = (cols - 1, rows - 1);
+        let coarse_cols: Vec<usize> = (0..ncols)
+            .step_by(coarse_stride)
+            .chain([ncols - 1])
+            .collect();
+        let coarse_rows: Vec<usize> = (0..nrows)
+            .step_by(coarse_stride)
+            .chain([nrows - 1])
+            .collect();
+        lut.coarse = coarse_rows
+            .iter()
+            .flat_map(|&j| coarse_cols.iter().map(move |&i| (i, j)))
+            .map(|(i, j)| (i, j, lut.cell_direction(i, j)))
+            .collect();
+        lut
     }
 
     /// Samples `model` at every node of a grid of step `step` pixels.
@@ -392,18 +410,13 @@ impl Lut {
     /// a row of identical nodes (a panorama's pole) cannot stall the climb.
     fn nearest_cell(&self, b: &Vector3<f64>) -> (usize, usize) {
         let (ncols, nrows) = (self.cols - 1, self.rows - 1);
-        let stride = self.coarse_stride;
         let mut best = (0, 0);
         let mut best_dot = f64::NEG_INFINITY;
-        let cols: Vec<usize> = (0..ncols).step_by(stride).chain([ncols - 1]).collect();
-        let rows: Vec<usize> = (0..nrows).step_by(stride).chain([nrows - 1]).collect();
-        for &j in &rows {
-            for &i in &cols {
-                let d = self.cell_direction(i, j).dot(b);
-                if d > best_dot {
-                    best_dot = d;
-                    best = (i, j);
-                }
+        for &(i, j, direction) in &self.coarse {
+            let d = direction.dot(b);
+            if d > best_dot {
+                best_dot = d;
+                best = (i, j);
             }
         }
         // Hill climb over the 8 neighbours; each move strictly increases the dot product.
