@@ -2,6 +2,7 @@
 //! quoted in the README. Run: `cargo bench --bench solvers [-- FILTER]`.
 use criterion::{criterion_group, criterion_main};
 
+mod calibration;
 mod geo;
 mod p3p;
 mod p3p_cosines;
@@ -10,6 +11,7 @@ mod synthetic;
 
 criterion_group!(
     benches,
+    calibration::benches,
     geo::benches,
     p3p::benches,
     p3p_cosines::benches,

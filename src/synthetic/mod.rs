@@ -13,6 +13,7 @@
 //! }
 //! ```
 
+pub mod calibration;
 pub mod pnp;
 pub use pnp::{PnpConfig, PnpProblem, RigModel, ladybug_camera_centres, perturb_pose};
 
