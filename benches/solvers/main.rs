@@ -3,6 +3,7 @@
 use criterion::{criterion_group, criterion_main};
 
 mod synthetic;
+mod triangulation;
 
-criterion_group!(benches, synthetic::benches);
+criterion_group!(benches, synthetic::benches, triangulation::benches);
 criterion_main!(benches);

@@ -65,7 +65,7 @@ const SIN_MIN_PARALLAX: f64 = 9.999_998_333_333_417e-4;
 /// assert!((hit.point - lamp).norm() < 1e-12);
 /// assert!(hit.gap_m < 1e-12);
 /// assert!((hit.ranges[0] - 105f64.sqrt()).abs() < 1e-12); // |(5, 8, 4)|
-/// assert!((hit.parallax_rad - 0.9817477042468103).abs() < 1e-12);
+/// assert!((hit.parallax_rad - 1.019479357663014).abs() < 1e-12);
 /// ```
 ///
 /// # References
