@@ -103,8 +103,10 @@ fn two_ray_midpoint_equals_projector_sum() {
     for _ in 0..2000 {
         let problem = RayProblem::around(&mut r, 2, 5.0, 80.0, 0.3, 5e-3);
         let o = problem.noisy_observations(&mut r);
-        let (Ok(hit), Ok(est)) = (intersect_two_rays(&o[0].ray, &o[1].ray), triangulate_rays(&o))
-        else {
+        let (Ok(hit), Ok(est)) = (
+            intersect_two_rays(&o[0].ray, &o[1].ray),
+            triangulate_rays(&o),
+        ) else {
             continue;
         };
         checked += 1;
@@ -320,9 +322,22 @@ fn monte_carlo(case: &Case, seed: u64, estimator: Estimator) -> (f64, f64, usize
                 lateral_offset_m: 5.0 + 25.0 * rand::RngExt::random::<f64>(&mut r),
                 ..DriveBy::streetlight()
             };
-            RayProblem::drive_by(&mut r, case.n, &setting, case.sigma_pos_m, case.sigma_ang_rad)
+            RayProblem::drive_by(
+                &mut r,
+                case.n,
+                &setting,
+                case.sigma_pos_m,
+                case.sigma_ang_rad,
+            )
         } else {
-            RayProblem::around(&mut r, case.n, 5.0, 80.0, case.sigma_pos_m, case.sigma_ang_rad)
+            RayProblem::around(
+                &mut r,
+                case.n,
+                5.0,
+                80.0,
+                case.sigma_pos_m,
+                case.sigma_ang_rad,
+            )
         };
         let o = problem.noisy_observations(&mut r);
         let Ok(est) = estimator(&o) else { continue };
@@ -366,8 +381,15 @@ fn papers_covariance_is_not_consistent_away_from_the_origin() {
     let (mut ours, mut papers) = (0.0, 0.0);
     let trials = 2000;
     for _ in 0..trials {
-        let problem = RayProblem::around(&mut r, case.n, 5.0, 80.0, case.sigma_pos_m, case.sigma_ang_rad)
-            .translated(&offset);
+        let problem = RayProblem::around(
+            &mut r,
+            case.n,
+            5.0,
+            80.0,
+            case.sigma_pos_m,
+            case.sigma_ang_rad,
+        )
+        .translated(&offset);
         let o = problem.noisy_observations(&mut r);
         let est = triangulate_rays(&o).unwrap();
         let e = est.point - problem.landmark;
@@ -385,11 +407,26 @@ fn estimates_are_unbiased() {
     for (seed, case) in [(31, &CASES[0]), (32, &CASES[3]), (33, &CASES[4])] {
         let mut r = rng(seed);
         let problem = if case.drive_by {
-            RayProblem::drive_by(&mut r, case.n, &DriveBy::streetlight(), case.sigma_pos_m, case.sigma_ang_rad)
+            RayProblem::drive_by(
+                &mut r,
+                case.n,
+                &DriveBy::streetlight(),
+                case.sigma_pos_m,
+                case.sigma_ang_rad,
+            )
         } else {
-            RayProblem::around(&mut r, case.n, 5.0, 80.0, case.sigma_pos_m, case.sigma_ang_rad)
+            RayProblem::around(
+                &mut r,
+                case.n,
+                5.0,
+                80.0,
+                case.sigma_pos_m,
+                case.sigma_ang_rad,
+            )
         };
-        let cov = triangulate_rays(&problem.exact_observations()).unwrap().covariance;
+        let cov = triangulate_rays(&problem.exact_observations())
+            .unwrap()
+            .covariance;
         let mut mean = Vector3::zeros();
         for _ in 0..TRIALS {
             let est = triangulate_rays(&problem.noisy_observations(&mut r)).unwrap();
@@ -403,7 +440,11 @@ fn estimates_are_unbiased() {
                 mean[k],
                 mean[k] / standard_error
             );
-            assert!(mean[k].abs() < 4.0 * standard_error, "{} axis {k}", case.name);
+            assert!(
+                mean[k].abs() < 4.0 * standard_error,
+                "{} axis {k}",
+                case.name
+            );
         }
     }
 }
@@ -471,7 +512,10 @@ fn information_grows_linearly_with_the_number_of_observations() {
     // norm of the covariance computed from the noisy observations.
     let (ns, info) = information_by_count(50, (5.5, 6.5));
     let rho = correlation(&ns, &info);
-    eprintln!("correlation of 1/‖Σ‖ with n, {} lamps 5.5–6.5 m off: {rho:.4} (paper: 0.9942)", ns.len());
+    eprintln!(
+        "correlation of 1/‖Σ‖ with n, {} lamps 5.5–6.5 m off: {rho:.4} (paper: 0.9942)",
+        ns.len()
+    );
     assert!(ns.len() >= 295);
     assert!(rho >= 0.99, "{rho}");
     // The slope: information per observation, the same at every n (the fit is linear).
@@ -479,7 +523,10 @@ fn information_grows_linearly_with_the_number_of_observations() {
     eprintln!("mean information per observation {slope:.4} m⁻²");
     // A more varied street (lamps 3–12 m off) scatters the slope, as the geometry changes.
     let (ns, info) = information_by_count(51, (3.0, 12.0));
-    eprintln!("correlation, lamps 3–12 m off: {:.4}", correlation(&ns, &info));
+    eprintln!(
+        "correlation, lamps 3–12 m off: {:.4}",
+        correlation(&ns, &info)
+    );
 }
 
 // ---------------------------------------------------------------- online form
@@ -513,7 +560,8 @@ fn ray_sum_matches_the_batch_estimator_at_every_step() {
 #[test]
 fn ray_sum_rejects_invalid_observations_unchanged() {
     let mut sum = RaySum::new();
-    sum.add(&obs(ray([0.0, 0.0, 0.0], [1.0, 1.0, 0.0]), 0.1, 1e-3)).unwrap();
+    sum.add(&obs(ray([0.0, 0.0, 0.0], [1.0, 1.0, 0.0]), 0.1, 1e-3))
+        .unwrap();
     let before = sum;
     let mut bad = ray([5.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
     bad.origin.y = f64::NAN;
@@ -561,32 +609,56 @@ fn degenerate_bundles_are_typed_errors() {
             Err(TriangulationError::BehindRay { index: 1, range_m }) if range_m < 0.0
         ));
         // Invalid rays and noise, named by index.
-        let good = [front, obs(ray([10.0, 0.0, 0.0], [-1.0, 1.0, 0.0]), 0.1, 1e-3)];
+        let good = [
+            front,
+            obs(ray([10.0, 0.0, 0.0], [-1.0, 1.0, 0.0]), 0.1, 1e-3),
+        ];
         assert!(estimator(&good).is_ok());
-        for (k, value) in [f64::NAN, f64::INFINITY, -f64::INFINITY].into_iter().enumerate() {
+        for (k, value) in [f64::NAN, f64::INFINITY, -f64::INFINITY]
+            .into_iter()
+            .enumerate()
+        {
             let mut bad = good;
             bad[1].ray.origin[k] = value;
-            assert_eq!(estimator(&bad), Err(TriangulationError::InvalidRay { index: 1 }));
+            assert_eq!(
+                estimator(&bad),
+                Err(TriangulationError::InvalidRay { index: 1 })
+            );
             let mut bad = good;
             bad[0].ray.direction[k] = value;
-            assert_eq!(estimator(&bad), Err(TriangulationError::InvalidRay { index: 0 }));
+            assert_eq!(
+                estimator(&bad),
+                Err(TriangulationError::InvalidRay { index: 0 })
+            );
             let mut bad = good;
             bad[1].sigma_ang_rad = value;
-            assert_eq!(estimator(&bad), Err(TriangulationError::InvalidNoise { index: 1 }));
+            assert_eq!(
+                estimator(&bad),
+                Err(TriangulationError::InvalidNoise { index: 1 })
+            );
         }
         let mut bad = good;
         bad[0].ray.direction *= 1.01;
-        assert_eq!(estimator(&bad), Err(TriangulationError::InvalidRay { index: 0 }));
+        assert_eq!(
+            estimator(&bad),
+            Err(TriangulationError::InvalidRay { index: 0 })
+        );
         let mut bad = good;
         bad[0].sigma_pos_m = -1.0;
-        assert_eq!(estimator(&bad), Err(TriangulationError::InvalidNoise { index: 0 }));
+        assert_eq!(
+            estimator(&bad),
+            Err(TriangulationError::InvalidNoise { index: 0 })
+        );
     }
     // Zero noise is fine for the plain estimator (a zero covariance), not for the weighted.
     let exact = [
         obs(ray([0.0, 0.0, 0.0], [1.0, 1.0, 0.0]), 0.0, 0.0),
         obs(ray([10.0, 0.0, 0.0], [-1.0, 1.0, 0.0]), 0.0, 0.0),
     ];
-    assert_eq!(triangulate_rays(&exact).unwrap().covariance, Matrix3::zeros());
+    assert_eq!(
+        triangulate_rays(&exact).unwrap().covariance,
+        Matrix3::zeros()
+    );
     assert_eq!(
         triangulate_rays_weighted(&exact),
         Err(TriangulationError::InvalidNoise { index: 0 })

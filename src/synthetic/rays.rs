@@ -62,7 +62,10 @@ impl RayProblem {
         sigma_pos_m: f64,
         sigma_ang_rad: f64,
     ) -> Self {
-        assert!(range_min_m > 0.0 && range_min_m <= range_max_m, "bad range interval");
+        assert!(
+            range_min_m > 0.0 && range_min_m <= range_max_m,
+            "bad range interval"
+        );
         let landmark = Vector3::from_fn(|_, _| rng.random_range(-100.0..=100.0));
         let observers = (0..n)
             .map(|_| {

@@ -76,8 +76,9 @@ pub fn intersect_two_rays(a: &Ray, b: &Ray) -> Result<TwoRayIntersection, Triang
     let u = a.direction;
     let v = b.direction;
     let w = a.origin - b.origin;
-    // One sum detects any NaN or infinity among the twelve inputs (it propagates).
-    if !(w.x + w.y + w.z + a.origin.x + u.x + u.y + u.z + v.x + v.y + v.z).is_finite() {
+    // One sum detects any NaN or infinity among the twelve inputs: a non-finite origin
+    // component makes that component of `w` non-finite, and NaN and ±∞ propagate.
+    if !(w.x + w.y + w.z + u.x + u.y + u.z + v.x + v.y + v.z).is_finite() {
         return Err(invalid_ray(a, b));
     }
     let uu = u.norm_squared();
@@ -102,13 +103,13 @@ pub fn intersect_two_rays(a: &Ray, b: &Ray) -> Result<TwoRayIntersection, Triang
     let inv = 1.0 / nn;
     let s = (c * e - d) * inv;
     let t = (e - c * d) * inv;
-    if !(s > 0.0) {
+    if s.is_nan() || s <= 0.0 {
         return Err(TriangulationError::BehindRay {
             index: 0,
             range_m: s,
         });
     }
-    if !(t > 0.0) {
+    if t.is_nan() || t <= 0.0 {
         return Err(TriangulationError::BehindRay {
             index: 1,
             range_m: t,
@@ -130,7 +131,8 @@ pub fn intersect_two_rays(a: &Ray, b: &Ray) -> Result<TwoRayIntersection, Triang
 /// The error for non-finite input, naming the first offending ray (cold path).
 #[cold]
 fn invalid_ray(a: &Ray, b: &Ray) -> TriangulationError {
-    let ok = |r: &Ray| crate::geometry::is_finite(&r.origin) && crate::geometry::is_finite(&r.direction);
+    let ok =
+        |r: &Ray| crate::geometry::is_finite(&r.origin) && crate::geometry::is_finite(&r.direction);
     if ok(a) && ok(b) {
         // Finite inputs whose difference overflowed.
         TriangulationError::NonFinite

@@ -4,7 +4,7 @@
 use super::{
     MIN_RAYS, MIN_RECIPROCAL_CONDITION, Sym3, TriangulationError, UNIT_DIRECTION_TOLERANCE,
 };
-use crate::geometry::{Ray, angle_between};
+use crate::geometry::{Ray, angle_between, is_finite};
 use nalgebra::{Matrix3, Vector3};
 
 /// One bearing observation of a landmark: a ray and its noise levels.
@@ -320,9 +320,8 @@ fn validate_count(obs: &[RayObservation]) -> Result<&RayObservation, Triangulati
 
 #[inline(always)]
 fn check_ray(index: usize, ray: &Ray) -> Result<(), TriangulationError> {
-    let o = ray.origin;
     let uu = ray.direction.norm_squared();
-    if (uu - 1.0).abs() <= UNIT_DIRECTION_TOLERANCE && (o.x + o.y + o.z).is_finite() {
+    if (uu - 1.0).abs() <= UNIT_DIRECTION_TOLERANCE && is_finite(&ray.origin) {
         Ok(())
     } else {
         Err(TriangulationError::InvalidRay { index })
@@ -373,7 +372,7 @@ fn accumulate_normal(
 fn solve(a: &Sym3, b: &Vector3<f64>) -> Result<(Sym3, Vector3<f64>), TriangulationError> {
     let (cof, det, e2) = a.cofactors();
     let reciprocal_condition = det / (a.trace() * e2);
-    if !(reciprocal_condition >= MIN_RECIPROCAL_CONDITION) {
+    if reciprocal_condition.is_nan() || reciprocal_condition < MIN_RECIPROCAL_CONDITION {
         if !a.is_finite() || !(b.x + b.y + b.z).is_finite() {
             return Err(TriangulationError::NonFinite);
         }
@@ -401,7 +400,7 @@ fn residual_variance(
     let (sp2, sa2) = check_noise(index, o)?;
     let r = q - (o.ray.origin - reference);
     let range_m = r.dot(&o.ray.direction);
-    if !(range_m > 0.0) {
+    if range_m.is_nan() || range_m <= 0.0 {
         return Err(TriangulationError::BehindRay { index, range_m });
     }
     Ok(sp2 + sa2 * r.norm_squared())
