@@ -1,10 +1,4 @@
 //! Triangulation: two-ray intersection per vertex, and the projector-sum estimator per ray.
-//!
-//! Each benchmark runs twice: in wall-clock time (`triangulation/...`, criterion's default)
-//! and in the CPU time of the benchmark thread (`triangulation_cpu/...`, read from
-//! `/proc/thread-self/schedstat`, Linux only), which is not inflated when other processes
-//! share the cores. The CPU-time group reports throughput as ns per element (ray or vertex).
-use criterion::measurement::{Measurement, ValueFormatter};
 use criterion::{BenchmarkId, Criterion, Throughput};
 use std::hint::black_box;
 use vgps::synthetic::rays::{DriveBy, RayProblem};
@@ -15,18 +9,8 @@ use vgps::triangulation::{
 /// Number of pre-generated problems cycled through (defeats branch-history memorisation).
 const POOL: usize = 256;
 
-/// Benchmarks of `vgps::triangulation`, in wall-clock time and in thread CPU time.
+/// Benchmarks of `vgps::triangulation`.
 pub fn benches(c: &mut Criterion) {
-    run("triangulation", c);
-    if ThreadCpuTime::available() {
-        let mut cpu = Criterion::default()
-            .with_measurement(ThreadCpuTime)
-            .configure_from_args();
-        run("triangulation_cpu", &mut cpu);
-    }
-}
-
-fn run<M: Measurement>(prefix: &str, c: &mut Criterion<M>) {
     let mut rng = vgps::synthetic::rng(3);
     let pairs: Vec<_> = (0..POOL)
         .map(|_| {
@@ -36,7 +20,7 @@ fn run<M: Measurement>(prefix: &str, c: &mut Criterion<M>) {
         })
         .collect();
     let mut i = 0;
-    c.bench_function(&format!("{prefix}/intersect_two_rays"), |b| {
+    c.bench_function("triangulation/intersect_two_rays", |b| {
         b.iter(|| {
             i = (i + 1) % POOL;
             let (a, r) = &pairs[i];
@@ -44,7 +28,7 @@ fn run<M: Measurement>(prefix: &str, c: &mut Criterion<M>) {
         })
     });
 
-    let mut group = c.benchmark_group(format!("{prefix}/rays"));
+    let mut group = c.benchmark_group("triangulation/rays");
     for n in [2usize, 10, 100] {
         let pool: Vec<_> = (0..POOL)
             .map(|_| {
@@ -85,63 +69,4 @@ fn run<M: Measurement>(prefix: &str, c: &mut Criterion<M>) {
         );
     }
     group.finish();
-}
-
-/// CPU time consumed by the calling thread (nanoseconds), from the scheduler's statistics.
-struct ThreadCpuTime;
-
-impl ThreadCpuTime {
-    fn read() -> u64 {
-        std::fs::read_to_string("/proc/thread-self/schedstat")
-            .ok()
-            .and_then(|s| s.split_whitespace().next()?.parse().ok())
-            .unwrap_or(0)
-    }
-
-    fn available() -> bool {
-        Self::read() > 0
-    }
-}
-
-impl Measurement for ThreadCpuTime {
-    type Intermediate = u64;
-    type Value = u64;
-    fn start(&self) -> u64 {
-        Self::read()
-    }
-    fn end(&self, start: u64) -> u64 {
-        Self::read().saturating_sub(start)
-    }
-    fn add(&self, a: &u64, b: &u64) -> u64 {
-        a + b
-    }
-    fn zero(&self) -> u64 {
-        0
-    }
-    fn to_f64(&self, v: &u64) -> f64 {
-        *v as f64
-    }
-    fn formatter(&self) -> &dyn ValueFormatter {
-        &NanosFormatter
-    }
-}
-
-/// Formats CPU times in ns, and throughputs as ns per element.
-struct NanosFormatter;
-
-impl ValueFormatter for NanosFormatter {
-    fn scale_values(&self, _typical: f64, _values: &mut [f64]) -> &'static str {
-        "ns (cpu)"
-    }
-    fn scale_throughputs(&self, _typical: f64, t: &Throughput, values: &mut [f64]) -> &'static str {
-        let per = match *t {
-            Throughput::Elements(n) | Throughput::ElementsAndBytes { elements: n, .. } => n,
-            Throughput::Bytes(n) | Throughput::BytesDecimal(n) | Throughput::Bits(n) => n,
-        } as f64;
-        values.iter_mut().for_each(|v| *v /= per.max(1.0));
-        "ns/elem (cpu)"
-    }
-    fn scale_for_machines(&self, _values: &mut [f64]) -> &'static str {
-        "ns"
-    }
 }
