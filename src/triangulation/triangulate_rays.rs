@@ -58,7 +58,7 @@ pub struct TriangulatedPoint {
 /// `docs/triangulation.md`). Each ray's weight is 1; [`triangulate_rays_weighted()`] weights
 /// by the inverse residual variance, which is better when the ranges differ a lot.
 ///
-/// Cost: two passes over the rays and one 3×3 inverse (about 10 ns per ray, see the
+/// Cost: two passes over the rays and one 3×3 inverse (see the
 /// `triangulation/` criterion benchmarks). Computed about the first ray's origin, so ECEF
 /// coordinates lose no precision.
 ///
