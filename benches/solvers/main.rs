@@ -8,6 +8,7 @@ mod p3p;
 mod p3p_cosines;
 mod refine_pose;
 mod synthetic;
+mod triangulation;
 
 criterion_group!(
     benches,
@@ -17,5 +18,6 @@ criterion_group!(
     p3p_cosines::benches,
     refine_pose::benches,
     synthetic::benches,
+    triangulation::benches,
 );
 criterion_main!(benches);
