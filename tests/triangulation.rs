@@ -64,7 +64,7 @@ fn two_skew_rays_known_answer() {
     assert!((hit.point - Vector3::new(5.0, 0.0, 1.0)).norm() < 1e-14);
     assert!((hit.ranges[0] - 5.0).abs() < 1e-14 && (hit.ranges[1] - 3.0).abs() < 1e-14);
     assert!((hit.gap_m - 2.0).abs() < 1e-14);
-    assert!((hit.parallax_rad - std::f64::consts::FRAC_PI_2).abs() < 1e-15);
+    assert!((hit.parallax_rad() - std::f64::consts::FRAC_PI_2).abs() < 1e-15);
     // Symmetric in its arguments.
     let rev = intersect_two_rays(&b, &a).unwrap();
     assert!((rev.point - hit.point).norm() < 1e-14);
@@ -91,7 +91,7 @@ fn two_rays_noise_free_recover_the_landmark() {
         assert!(hit.gap_m < 1e-11 * scale);
         assert!((hit.ranges[0] - ranges[0]).abs() < 1e-11 * scale);
         assert!((hit.ranges[1] - ranges[1]).abs() < 1e-11 * scale);
-        assert!((hit.parallax_rad - angle_between(&u, &v)).abs() < 1e-14);
+        assert!((hit.parallax_rad() - angle_between(&u, &v)).abs() < 1e-14);
     }
     assert!(checked > 1800, "{checked}");
 }
@@ -111,7 +111,7 @@ fn two_ray_midpoint_equals_projector_sum() {
         };
         checked += 1;
         assert!((hit.point - est.point).norm() < 1e-9, "{hit:?} {est:?}");
-        assert!((hit.parallax_rad - est.max_parallax_rad).abs() < 1e-12);
+        assert!((hit.parallax_rad() - est.max_parallax_rad).abs() < 1e-12);
     }
     assert!(checked > 1900, "{checked}");
 }

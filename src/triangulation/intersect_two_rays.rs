@@ -15,9 +15,23 @@ pub struct TwoRayIntersection {
     /// Distance between the rays at closest approach (metres, ≥ 0): the length of the common
     /// perpendicular, 0 for rays that truly intersect. The point is `gap_m / 2` from each ray.
     pub gap_m: f64,
+    /// Sine of the angle between the two ray directions (`|a × b|`, in `[0, 1]`).
+    pub sin_parallax: f64,
+    /// Cosine of the angle between the two ray directions (`a · b`, in `[-1, 1]`).
+    pub cos_parallax: f64,
+}
+
+impl TwoRayIntersection {
     /// Angle between the two ray directions, in `[0, π]` radians: the parallax the landmark
     /// subtends between the two observers.
-    pub parallax_rad: f64,
+    ///
+    /// Computed on demand from [`sin_parallax`](Self::sin_parallax) and
+    /// [`cos_parallax`](Self::cos_parallax): the `atan2` would otherwise be most of the cost of
+    /// an intersection.
+    #[inline]
+    pub fn parallax_rad(&self) -> f64 {
+        self.sin_parallax.atan2(self.cos_parallax)
+    }
 }
 
 /// `sin(`[`super::MIN_PARALLAX_RAD`]`)`: the check is made on `|a × b|` without a trigonometric call.
@@ -65,7 +79,7 @@ const SIN_MIN_PARALLAX: f64 = 9.999_998_333_333_417e-4;
 /// assert!((hit.point - lamp).norm() < 1e-12);
 /// assert!(hit.gap_m < 1e-12);
 /// assert!((hit.ranges[0] - 105f64.sqrt()).abs() < 1e-12); // |(5, 8, 4)|
-/// assert!((hit.parallax_rad - 1.019479357663014).abs() < 1e-12);
+/// assert!((hit.parallax_rad() - 1.019479357663014).abs() < 1e-12);
 /// ```
 ///
 /// # References
@@ -124,7 +138,8 @@ pub fn intersect_two_rays(a: &Ray, b: &Ray) -> Result<TwoRayIntersection, Triang
         point,
         ranges: [s, t],
         gap_m,
-        parallax_rad: sin_angle.atan2(c),
+        sin_parallax: sin_angle,
+        cos_parallax: c,
     })
 }
 

@@ -34,7 +34,7 @@ pub use triangulate_rays::{
 ///
 /// The range of a two-ray intersection is uncertain by about `σ_ang / parallax` of itself,
 /// so below a milliradian (the bearing accuracy of a good panoramic camera) the point is not
-/// determined at all. The reported `parallax_rad` lets a caller apply a stricter policy.
+/// determined at all. The reported parallax lets a caller apply a stricter policy.
 pub const MIN_PARALLAX_RAD: f64 = 1e-3;
 
 /// Smallest accepted reciprocal condition estimate of the normal matrix `A = Σ wᵢPᵢ` of
