@@ -47,17 +47,21 @@
 
 mod camera;
 mod equirectangular;
+pub mod formats;
 mod kannala_brandt;
 mod lut;
 mod pinhole;
 mod rig;
+mod tabulated_pinhole;
 
 pub use camera::Camera;
 pub use equirectangular::{Equirectangular, EquirectangularParams, rig_from_panorama};
+pub use formats::{Format, LoadError, load, save_native};
 pub use kannala_brandt::{KannalaBrandt, KannalaBrandtParams};
 pub use lut::{LUT_FILE_VERSION, LUT_HEADER_BYTES, LUT_MAGIC, LUT_UNIT_TOLERANCE, Lut, LutParams};
 pub use pinhole::{Pinhole, PinholeParams, RadialTangential};
 pub use rig::{ROTATION_TOLERANCE, Rig, RigCamera, RigPixel};
+pub use tabulated_pinhole::{DistortionTable, TabulatedPinhole, TabulatedPinholeParams};
 
 use nalgebra::{Matrix2, Matrix2x3, Matrix3, Matrix3x2, Vector2, Vector3};
 use thiserror::Error;

@@ -13,6 +13,8 @@
 //! }
 //! ```
 
+pub mod calibration_files;
+
 use crate::geometry::{Pose, bearing_in_rig, try_unit};
 use nalgebra::{Rotation3, Translation3, UnitQuaternion, Vector3};
 use rand::{Rng, RngExt, SeedableRng};
