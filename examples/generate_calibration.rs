@@ -100,7 +100,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     )?;
 
     // 5. An NCLT-style directory with small 64×48 images.
-    nclt::write(&synth::nclt_rig(64, 48, 40.0), &out.join("nclt_example"))?;
+    nclt::write(&synth::nclt_rig(64, 48, 30.0), &out.join("nclt_example"))?;
 
     // Test fixtures: small and hand-checkable.
     let exact = synth::ladybug_ini_values(40.0, (31.5, 23.5), 0.04, 0.06, 0.0);
