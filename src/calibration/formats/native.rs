@@ -143,13 +143,8 @@ fn base_dir(path: &Path) -> PathBuf {
 /// [`LoadError::Invalid`] with the line and column of a JSON/serde error (unknown model,
 /// unknown or missing field, wrong type), or the camera and field of an invalid value.
 pub fn parse(text: &str, path: &Path) -> Result<Rig, LoadError> {
-    let file: NativeFile = serde_json::from_str(text).map_err(|e| {
-        LoadError::invalid(
-            path,
-            format!("line {} column {}", e.line(), e.column()),
-            e.to_string(),
-        )
-    })?;
+    let file: NativeFile = serde_json::from_str(text)
+        .map_err(|e| LoadError::invalid(path, error_location(text, &e), e.to_string()))?;
     if file.format != NATIVE_FORMAT_NAME {
         return Err(LoadError::invalid(
             path,
@@ -187,6 +182,30 @@ pub fn parse(text: &str, path: &Path) -> Result<Rig, LoadError> {
         });
     }
     Rig::new(cameras).map_err(|e| LoadError::invalid(path, "cameras", e.to_string()))
+}
+
+/// The line of a serde error. serde reports an unknown model or field of a tagged camera at
+/// the end of its object: the line that names the offending value is reported instead.
+fn error_location(text: &str, e: &serde_json::Error) -> String {
+    let message = e.to_string();
+    for prefix in ["unknown variant `", "unknown field `"] {
+        if let Some(rest) = message.split(prefix).nth(1)
+            && let Some(name) = rest.split('`').next()
+        {
+            let quoted = format!("\"{name}\"");
+            // The last occurrence before the reported line (the object the error is in).
+            let found = text
+                .lines()
+                .take(e.line())
+                .enumerate()
+                .filter(|(_, l)| l.contains(&quoted))
+                .last();
+            if let Some((n, _)) = found {
+                return format!("line {}", n + 1);
+            }
+        }
+    }
+    format!("line {} column {}", e.line(), e.column())
 }
 
 /// Reads a native file (and its side files).
