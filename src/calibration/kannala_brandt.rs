@@ -2,7 +2,7 @@
 
 use super::{
     CalibrationError, CameraModel, Pixel, bearing_jacobian_from_pixel_jacobian, check_finite,
-    check_positive, check_size, first_non_positive, in_image_rectangle,
+    check_positive, check_size, clamp_to_image, first_non_positive, in_image_rectangle,
 };
 use nalgebra::{Matrix2x3, Matrix3x2, RowVector3, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
@@ -180,6 +180,9 @@ impl KannalaBrandt {
         let mut theta = rho.min(hi);
         for _ in 0..MAX_FISHEYE_ITERATIONS {
             let f = self.theta_d(theta) - rho;
+            if f == 0.0 {
+                return (theta < self.theta_max).then_some(theta);
+            }
             if f > 0.0 {
                 hi = theta;
             } else {
@@ -187,7 +190,7 @@ impl KannalaBrandt {
             }
             let slope = self.theta_d_slope(theta);
             let mut next = theta - f / slope;
-            if !(next > lo && next < hi) {
+            if !(next >= lo && next <= hi) {
                 next = 0.5 * (lo + hi);
             }
             if (next - theta).abs() <= FISHEYE_TOLERANCE {
@@ -264,10 +267,11 @@ impl CameraModel for KannalaBrandt {
         let (h, q) = self.h_and_slope_over_sin(theta);
         let p = &self.params;
         let (xd, yd) = (h * x / n, h * y / n);
-        let pixel = Vector2::new(p.fx * xd + p.cx, p.fy * yd + p.cy);
-        if !in_image_rectangle(p.width, p.height, &pixel) {
-            return None;
-        }
+        let pixel = clamp_to_image(
+            p.width,
+            p.height,
+            &Vector2::new(p.fx * xd + p.cx, p.fy * yd + p.cy),
+        )?;
         // h'(θ) ∂θ/∂B = (h'/sinθ)/N · (Z X, Z Y, -r3²) / N².
         let dtheta_term = RowVector3::new(z * x, z * y, -r3 * r3) * (q / (n * n2));
         let inv_n = 1.0 / n;

@@ -21,8 +21,8 @@
 //! f = 600 px: far below the 0.01 px accuracy target, at half the size of `f64`.
 
 use super::{
-    CalibrationError, CameraModel, Pixel, in_image_rectangle, normalisation_jacobian,
-    pixel_jacobian_from_bearing_jacobian,
+    CalibrationError, CameraModel, Pixel, clamp_to_image, in_image_rectangle,
+    normalisation_jacobian, pixel_jacobian_from_bearing_jacobian,
 };
 use nalgebra::{Matrix2x3, Matrix3x2, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
@@ -54,6 +54,14 @@ pub const LUT_INVERSE_RESIDUAL: f64 = 1e-9;
 /// nodes per side.
 pub const LUT_COARSE_SIDE: usize = 24;
 
+/// Smallest squared norm of an interpolated bearing accepted before renormalisation (a
+/// cell whose nodes nearly cancel has no meaningful direction).
+pub const MIN_INTERPOLATED_NORM_SQUARED: f64 = 1e-12;
+
+/// Grids with at least this many nodes are built on several threads by
+/// [`Lut::from_model`].
+pub const LUT_PARALLEL_MIN_NODES: usize = 16_384;
+
 /// Largest number of grid nodes a LUT may have (2²⁸, a 3 GiB table).
 pub const MAX_LUT_NODES: u64 = 1 << 28;
 
@@ -78,7 +86,8 @@ pub struct LutParams {
 /// Pixel → bearing: bilinear interpolation of the four nodes of the pixel's cell, then
 /// renormalisation. Bearing → pixel (source-model free): the best node of a coarse grid of at
 /// most [`LUT_COARSE_SIDE`]² nodes (largest dot product with the direction), a hill climb on
-/// the full node grid, then Newton's method on the piecewise-bilinear map: with `t₁, t₂` a
+/// neighbouring cells (cell centres, so that the identical nodes of a panorama's pole row
+/// cannot stall it), then Newton's method on the piecewise-bilinear map: with `t₁, t₂` a
 /// basis of the plane normal to the direction `b`, solve `(t₁·B(p), t₂·B(p)) = 0` with the
 /// analytic 2×2 Jacobian, to a step below [`LUT_INVERSE_TOLERANCE`] px; accepted when the
 /// pixel is inside the image and `∠(B(p), b) ≤` [`LUT_INVERSE_RESIDUAL`].
@@ -88,7 +97,7 @@ pub struct LutParams {
 /// use nalgebra::Vector2;
 /// use vgps::calibration::{CameraModel, Lut, Pinhole, PinholeParams};
 /// let pinhole = Pinhole::new(PinholeParams::ideal(640, 480, 500.0, 500.0, 319.5, 239.5))?;
-/// let lut = Lut::from_model(&pinhole, 8)?;
+/// let lut = Lut::from_model(&pinhole, 3)?;
 /// let pixel = Vector2::new(100.25, 50.75);
 /// let (exact, approx) = (pinhole.try_bearing(&pixel).unwrap(), lut.try_bearing(&pixel).unwrap());
 /// assert!((exact - approx).norm() * 500.0 < 0.01); // below 0.01 px
@@ -102,6 +111,10 @@ pub struct Lut {
     cols: usize,
     rows: usize,
     coarse_stride: usize,
+    /// The coarse inverse grid: cell `(i, j)` and its mean node direction.
+    coarse: Vec<(usize, usize, Vector3<f64>)>,
+    u_axis: Axis,
+    v_axis: Axis,
 }
 
 /// `(cols, rows)` of the node grid, or `None` when too large.
@@ -159,17 +172,50 @@ fn to_f64(b: &[f32; 3]) -> Vector3<f64> {
     Vector3::new(f64::from(b[0]), f64::from(b[1]), f64::from(b[2]))
 }
 
-/// Cell index, fraction within the cell and cell width along one axis (the fraction is
-/// unclamped: outside the image it extrapolates the border cell).
-#[inline]
-fn locate(coordinate: f64, step: u32, extent: u32, cells: usize) -> (usize, f64, f64) {
-    let a = coordinate + 0.5;
-    let s = f64::from(step);
-    // `as usize` saturates: negative and NaN go to 0.
-    let i = ((a / s) as usize).min(cells - 1);
-    let start = i as f64 * s;
-    let width = (f64::from(extent) - start).min(s);
-    (i, (a - start) / width, width)
+/// Cell look-up along one axis: uniform cells of `step` pixels, the last one possibly
+/// narrower.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Axis {
+    /// Number of cells (nodes − 1, ≥ 1).
+    cells: usize,
+    /// 1 / step.
+    inv_step: f64,
+    /// Offset (from the image edge at −½) of the last cell's first node.
+    last_start: f64,
+    /// 1 / width of the last cell.
+    inv_last_width: f64,
+}
+
+impl Axis {
+    fn new(extent: u32, step: u32, nodes: usize) -> Self {
+        let cells = nodes - 1;
+        let last_start = (cells - 1) as f64 * f64::from(step);
+        Self {
+            cells,
+            inv_step: 1.0 / f64::from(step),
+            last_start,
+            inv_last_width: 1.0 / (f64::from(extent) - last_start),
+        }
+    }
+
+    /// Cell index, fraction within the cell and 1 / cell width. The fraction is unclamped:
+    /// outside the image it extrapolates the border cell.
+    #[inline]
+    fn locate(&self, coordinate: f64) -> (usize, f64, f64) {
+        let a = coordinate + 0.5;
+        let f = a * self.inv_step;
+        // `as usize` saturates: negative and NaN go to 0.
+        let i = f as usize;
+        if i + 1 < self.cells {
+            (i, f - i as f64, self.inv_step)
+        } else {
+            (
+                self.cells - 1,
+                (a - self.last_start) * self.inv_last_width,
+                self.inv_last_width,
+            )
+        }
+    }
 }
 
 impl Lut {
@@ -186,20 +232,41 @@ impl Lut {
 
     fn from_validated(params: LutParams, cols: usize, rows: usize) -> Self {
         let coarse_stride = cols.max(rows).div_ceil(LUT_COARSE_SIDE).max(1);
-        Self {
+        let mut lut = Self {
+            u_axis: Axis::new(params.width, params.step, cols),
+            v_axis: Axis::new(params.height, params.step, rows),
             params,
             cols,
             rows,
             coarse_stride,
-        }
+            coarse: Vec::new(),
+        };
+        let (ncols, nrows) = (cols - 1, rows - 1);
+        let coarse_cols: Vec<usize> = (0..ncols)
+            .step_by(coarse_stride)
+            .chain([ncols - 1])
+            .collect();
+        let coarse_rows: Vec<usize> = (0..nrows)
+            .step_by(coarse_stride)
+            .chain([nrows - 1])
+            .collect();
+        lut.coarse = coarse_rows
+            .iter()
+            .flat_map(|&j| coarse_cols.iter().map(move |&i| (i, j)))
+            .map(|(i, j)| (i, j, lut.cell_direction(i, j)))
+            .collect();
+        lut
     }
 
     /// Samples `model` at every node of a grid of step `step` pixels.
     ///
+    /// Grids of at least [`LUT_PARALLEL_MIN_NODES`] nodes are filled by up to
+    /// `std::thread::available_parallelism()` scoped threads, one band of rows each.
+    ///
     /// # Errors
     /// [`CalibrationError::LutBuild`] when the step is zero, the grid too large or the model
     /// has no bearing at some node (e.g. outside a fisheye's image circle).
-    pub fn from_model<M: CameraModel + ?Sized>(
+    pub fn from_model<M: CameraModel + Sync + ?Sized>(
         model: &M,
         step: u32,
     ) -> Result<Self, CalibrationError> {
@@ -208,18 +275,48 @@ impl Lut {
             grid_size(width, height, step).ok_or_else(|| CalibrationError::LutBuild {
                 reason: format!("size {width}×{height} with step {step} is empty or too large"),
             })?;
-        let mut bearings = Vec::with_capacity(cols * rows);
-        for j in 0..rows {
-            let v = -0.5 + f64::from(height).min((j as f64) * f64::from(step));
-            for i in 0..cols {
+        let mut bearings = vec![[0.0f32; 3]; cols * rows];
+        let threads = if cols * rows >= LUT_PARALLEL_MIN_NODES {
+            std::thread::available_parallelism().map_or(1, |n| n.get())
+        } else {
+            1
+        };
+        let rows_per_band = rows.div_ceil(threads.clamp(1, rows));
+        // Fills the rows of one band, starting at row `first_row`.
+        let fill = |band: &mut [[f32; 3]], first_row: usize| -> Result<(), CalibrationError> {
+            for (k, out) in band.iter_mut().enumerate() {
+                let (i, j) = (k % cols, first_row + k / cols);
                 let u = -0.5 + f64::from(width).min((i as f64) * f64::from(step));
+                let v = -0.5 + f64::from(height).min((j as f64) * f64::from(step));
                 let b = model.try_bearing(&Vector2::new(u, v)).ok_or_else(|| {
                     CalibrationError::LutBuild {
                         reason: format!("the source model has no bearing at node pixel ({u}, {v})"),
                     }
                 })?;
-                bearings.push([b.x as f32, b.y as f32, b.z as f32]);
+                *out = [b.x as f32, b.y as f32, b.z as f32];
             }
+            Ok(())
+        };
+        if rows_per_band >= rows {
+            fill(&mut bearings, 0)?;
+        } else {
+            std::thread::scope(|scope| {
+                let handles: Vec<_> = bearings
+                    .chunks_mut(rows_per_band * cols)
+                    .enumerate()
+                    .map(|(b, band)| {
+                        let fill = &fill;
+                        scope.spawn(move || fill(band, b * rows_per_band))
+                    })
+                    .collect();
+                handles.into_iter().try_for_each(|h| {
+                    h.join().unwrap_or_else(|_| {
+                        Err(CalibrationError::LutBuild {
+                            reason: "a LUT worker thread panicked".into(),
+                        })
+                    })
+                })
+            })?;
         }
         let params = LutParams {
             width,
@@ -263,12 +360,28 @@ impl Lut {
         to_f64(&self.params.bearings[j * self.cols + i])
     }
 
+    /// Interpolated (unnormalised) bearing only (the hot path of pixel → bearing).
+    #[inline]
+    fn interpolate_bearing(&self, pixel: &Pixel) -> Vector3<f64> {
+        let p = &self.params;
+        let (i, t, _) = self.u_axis.locate(pixel.x);
+        let (j, r, _) = self.v_axis.locate(pixel.y);
+        let base = j * self.cols + i;
+        let b00 = to_f64(&p.bearings[base]);
+        let b10 = to_f64(&p.bearings[base + 1]);
+        let b01 = to_f64(&p.bearings[base + self.cols]);
+        let b11 = to_f64(&p.bearings[base + self.cols + 1]);
+        let top = b00 + (b10 - b00) * t;
+        let bottom = b01 + (b11 - b01) * t;
+        top + (bottom - top) * r
+    }
+
     /// Interpolated (unnormalised) bearing and its derivatives along u and v.
     #[inline]
     fn interpolate(&self, pixel: &Pixel) -> (Vector3<f64>, Vector3<f64>, Vector3<f64>) {
         let p = &self.params;
-        let (i, t, wu) = locate(pixel.x, p.step, p.width, self.cols - 1);
-        let (j, r, wv) = locate(pixel.y, p.step, p.height, self.rows - 1);
+        let (i, t, inv_wu) = self.u_axis.locate(pixel.x);
+        let (j, r, inv_wv) = self.v_axis.locate(pixel.y);
         let base = j * self.cols + i;
         let b00 = to_f64(&p.bearings[base]);
         let b10 = to_f64(&p.bearings[base + 1]);
@@ -277,41 +390,42 @@ impl Lut {
         let top = b00 + (b10 - b00) * t;
         let bottom = b01 + (b11 - b01) * t;
         let b = top + (bottom - top) * r;
-        let du = ((b10 - b00) * (1.0 - r) + (b11 - b01) * r) / wu;
-        let dv = (bottom - top) / wv;
+        let du = ((b10 - b00) * (1.0 - r) + (b11 - b01) * r) * inv_wu;
+        let dv = (bottom - top) * inv_wv;
         (b, du, dv)
     }
 
-    /// The node with the largest dot product with `b`: coarse grid, then hill climb.
-    fn nearest_node(&self, b: &Vector3<f64>) -> (usize, usize) {
-        let stride = self.coarse_stride;
+    /// Unit mean of the four nodes of cell `(i, j)` (its centre's direction, up to the
+    /// interpolation error).
+    #[inline]
+    fn cell_direction(&self, i: usize, j: usize) -> Vector3<f64> {
+        let sum =
+            self.node(i, j) + self.node(i + 1, j) + self.node(i, j + 1) + self.node(i + 1, j + 1);
+        let n = sum.norm();
+        if n > 0.0 { sum / n } else { sum }
+    }
+
+    /// The cell whose centre direction has the largest dot product with `b`: a coarse grid
+    /// of cells, then a hill climb over neighbouring cells. Cells rather than nodes, so that
+    /// a row of identical nodes (a panorama's pole) cannot stall the climb.
+    fn nearest_cell(&self, b: &Vector3<f64>) -> (usize, usize) {
+        let (ncols, nrows) = (self.cols - 1, self.rows - 1);
         let mut best = (0, 0);
         let mut best_dot = f64::NEG_INFINITY;
-        let last = |n: usize| n - 1;
-        let cols: Vec<usize> = (0..self.cols)
-            .step_by(stride)
-            .chain([last(self.cols)])
-            .collect();
-        let rows: Vec<usize> = (0..self.rows)
-            .step_by(stride)
-            .chain([last(self.rows)])
-            .collect();
-        for &j in &rows {
-            for &i in &cols {
-                let d = self.node(i, j).dot(b);
-                if d > best_dot {
-                    best_dot = d;
-                    best = (i, j);
-                }
+        for &(i, j, direction) in &self.coarse {
+            let d = direction.dot(b);
+            if d > best_dot {
+                best_dot = d;
+                best = (i, j);
             }
         }
         // Hill climb over the 8 neighbours; each move strictly increases the dot product.
-        for _ in 0..(self.cols + self.rows) {
+        for _ in 0..(ncols + nrows) {
             let (i0, j0) = best;
             let mut moved = false;
-            for j in j0.saturating_sub(1)..=(j0 + 1).min(self.rows - 1) {
-                for i in i0.saturating_sub(1)..=(i0 + 1).min(self.cols - 1) {
-                    let d = self.node(i, j).dot(b);
+            for j in j0.saturating_sub(1)..=(j0 + 1).min(nrows - 1) {
+                for i in i0.saturating_sub(1)..=(i0 + 1).min(ncols - 1) {
+                    let d = self.cell_direction(i, j).dot(b);
                     if d > best_dot {
                         best_dot = d;
                         best = (i, j);
@@ -329,7 +443,7 @@ impl Lut {
     /// Bearing → pixel by Newton's method on the piecewise-bilinear map.
     fn invert(&self, direction: &Vector3<f64>) -> Option<Pixel> {
         let b = crate::geometry::try_unit(direction)?;
-        let (i, j) = self.nearest_node(&b);
+        let (i, j) = self.nearest_cell(&b);
         // A basis of the plane normal to b.
         let helper = if b.x.abs() < 0.6 {
             Vector3::x()
@@ -341,7 +455,7 @@ impl Lut {
         let t1 = b.cross(&helper).normalize();
         let t2 = b.cross(&t1);
         let max_step = f64::from(self.params.step);
-        let mut p = self.node_pixel(i, j);
+        let mut p = 0.5 * (self.node_pixel(i, j) + self.node_pixel(i + 1, j + 1));
         let mut converged = false;
         for _ in 0..MAX_LUT_INVERSE_ITERATIONS {
             let (bp, du, dv) = self.interpolate(&p);
@@ -362,9 +476,10 @@ impl Lut {
                 break;
             }
         }
-        if !converged || !in_image_rectangle(self.params.width, self.params.height, &p) {
+        if !converged {
             return None;
         }
+        let p = clamp_to_image(self.params.width, self.params.height, &p)?;
         let (bp, _, _) = self.interpolate(&p);
         (crate::geometry::angle_between(&bp, &b) <= LUT_INVERSE_RESIDUAL).then_some(p)
     }
@@ -514,8 +629,14 @@ impl CameraModel for Lut {
         if !in_image_rectangle(self.params.width, self.params.height, pixel) {
             return None;
         }
-        let (b, _, _) = self.interpolate(pixel);
-        crate::geometry::try_unit(&b)
+        let b = self.interpolate_bearing(pixel);
+        // Nodes are finite unit vectors and the weights convex: the norm is finite, and it
+        // is only zero if opposite nodes cancel (then no bearing).
+        let n2 = b.norm_squared();
+        if !(n2 > MIN_INTERPOLATED_NORM_SQUARED) {
+            return None;
+        }
+        Some(b * (1.0 / n2.sqrt()))
     }
 
     fn try_pixel(&self, bearing: &Vector3<f64>) -> Option<Pixel> {

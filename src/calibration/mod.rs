@@ -55,12 +55,12 @@ mod rig;
 mod tabulated_pinhole;
 
 pub use camera::Camera;
-pub use equirectangular::{Equirectangular, EquirectangularParams, rig_from_panorama};
+pub use equirectangular::*;
 pub use formats::{Format, LoadError, load, save_native};
-pub use kannala_brandt::{KannalaBrandt, KannalaBrandtParams};
-pub use lut::{LUT_FILE_VERSION, LUT_HEADER_BYTES, LUT_MAGIC, LUT_UNIT_TOLERANCE, Lut, LutParams};
-pub use pinhole::{Pinhole, PinholeParams, RadialTangential};
-pub use rig::{ROTATION_TOLERANCE, Rig, RigCamera, RigPixel};
+pub use kannala_brandt::*;
+pub use lut::*;
+pub use pinhole::*;
+pub use rig::*;
 pub use tabulated_pinhole::{DistortionTable, TabulatedPinhole, TabulatedPinholeParams};
 
 use nalgebra::{Matrix2, Matrix2x3, Matrix3, Matrix3x2, Vector2, Vector3};
@@ -179,6 +179,23 @@ pub fn in_image_rectangle(width: u32, height: u32, pixel: &Pixel) -> bool {
         && pixel.x <= f64::from(width) - 0.5
         && pixel.y >= -0.5
         && pixel.y <= f64::from(height) - 0.5
+}
+
+/// A projected pixel up to this far (pixels) outside the image rectangle is clamped onto its
+/// edge instead of rejected, so that pixels on the edge survive a round trip's rounding.
+pub const IMAGE_EDGE_TOLERANCE: f64 = 1e-9;
+
+/// `pixel` clamped onto the image rectangle when it lies inside it or within
+/// [`IMAGE_EDGE_TOLERANCE`] of it; `None` otherwise (or when not finite).
+#[inline]
+pub fn clamp_to_image(width: u32, height: u32, pixel: &Pixel) -> Option<Pixel> {
+    let (w, h) = (f64::from(width) - 0.5, f64::from(height) - 0.5);
+    let t = IMAGE_EDGE_TOLERANCE;
+    if pixel.x >= -0.5 - t && pixel.x <= w + t && pixel.y >= -0.5 - t && pixel.y <= h + t {
+        Some(Vector2::new(pixel.x.clamp(-0.5, w), pixel.y.clamp(-0.5, h)))
+    } else {
+        None
+    }
 }
 
 /// Number of scan steps of the validity-domain search (over an angle range, e.g. `(0, π/2)`

@@ -2,7 +2,7 @@
 
 use super::{
     CalibrationError, CameraModel, Pixel, bearing_jacobian_from_pixel_jacobian, check_finite,
-    check_positive, check_size, first_non_positive, in_image_rectangle,
+    check_positive, check_size, clamp_to_image, first_non_positive, in_image_rectangle,
 };
 use nalgebra::{Matrix2, Matrix2x3, Matrix3x2, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
@@ -218,7 +218,15 @@ impl Pinhole {
             return Some(xd);
         }
         let dist = &self.params.distortion;
-        let mut x = xd;
+        // First guess: undo the radial factor evaluated at the distorted radius (saves about
+        // one Newton iteration over starting at x_d for strong barrel distortion).
+        let rd2 = xd.norm_squared();
+        let radial = 1.0 + rd2 * (dist.k1 + rd2 * (dist.k2 + rd2 * dist.k3));
+        let mut x = if radial > 0.0 && radial.is_finite() {
+            xd / radial
+        } else {
+            xd
+        };
         for _ in 0..MAX_UNDISTORT_ITERATIONS {
             let (d, j) = dist.distort_with_jacobian(x.x, x.y);
             let r = d - xd;
@@ -233,12 +241,9 @@ impl Pinhole {
             );
             x -= step;
             if step.x.abs() <= UNDISTORT_TOLERANCE && step.y.abs() <= UNDISTORT_TOLERANCE {
-                let r2 = x.norm_squared();
-                if !(r2 < self.r2_max) {
-                    return None;
-                }
-                let (d, j) = dist.distort_with_jacobian(x.x, x.y);
-                if (d - xd).norm() > UNDISTORT_RESIDUAL || !(j.determinant() > 0.0) {
+                // Converged: the residual before this last step is |J δ| ≤ ~1e-12 already,
+                // and the Jacobian there had a positive determinant.
+                if !(x.norm_squared() < self.r2_max) || r.norm() > UNDISTORT_RESIDUAL {
                     return None;
                 }
                 return Some(x);
@@ -263,10 +268,11 @@ impl Pinhole {
         } else {
             (Vector2::new(x, y), Matrix2::identity())
         };
-        let pixel = Vector2::new(p.fx * d.x + p.cx, p.fy * d.y + p.cy);
-        if !in_image_rectangle(p.width, p.height, &pixel) {
-            return None;
-        }
+        let pixel = clamp_to_image(
+            p.width,
+            p.height,
+            &Vector2::new(p.fx * d.x + p.cx, p.fy * d.y + p.cy),
+        )?;
         let scale = Matrix2::new(p.fx, 0.0, 0.0, p.fy);
         Some((pixel, scale * j))
     }
@@ -325,8 +331,11 @@ impl CameraModel for Pinhole {
         } else {
             Vector2::new(x, y)
         };
-        let pixel = Vector2::new(p.fx * d.x + p.cx, p.fy * d.y + p.cy);
-        in_image_rectangle(p.width, p.height, &pixel).then_some(pixel)
+        clamp_to_image(
+            p.width,
+            p.height,
+            &Vector2::new(p.fx * d.x + p.cx, p.fy * d.y + p.cy),
+        )
     }
 
     fn try_bearing_with_jacobian(&self, pixel: &Pixel) -> Option<(Vector3<f64>, Matrix3x2<f64>)> {

@@ -13,6 +13,7 @@
 //! }
 //! ```
 
+pub mod calibration;
 pub mod calibration_files;
 
 use crate::geometry::{Pose, bearing_in_rig, try_unit};
