@@ -37,7 +37,7 @@ fn figure(out: &str, key: &str, suffix: &str) -> f64 {
     });
     let before = line.split(suffix).next().unwrap();
     before
-        .rsplit(|c: char| c == ' ' || c == ':')
+        .rsplit([' ', ':'])
         .find(|s| !s.is_empty())
         .unwrap()
         .parse()
