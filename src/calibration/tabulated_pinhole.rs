@@ -77,9 +77,10 @@ impl DistortionTable {
     }
 
     /// The interpolated position at `pixel` and its 2×2 Jacobian (columns d/du, d/dv).
-    /// Outside the node range the border cells are extrapolated linearly.
+    /// Outside the node range the border cells are extrapolated linearly. The table must
+    /// be valid ([`validate`](Self::validate)).
     #[inline]
-    pub fn interpolate(&self, pixel: &Pixel) -> (Vector2<f64>, Matrix2<f64>) {
+    pub(crate) fn interpolate(&self, pixel: &Pixel) -> (Vector2<f64>, Matrix2<f64>) {
         let cell = |x: f64, n: u32| {
             // `as usize` saturates (negative and NaN → 0).
             let i = (x.floor().max(0.0) as usize).min(n as usize - 2);
@@ -102,7 +103,11 @@ impl DistortionTable {
     /// The smallest determinant of the table's Jacobian over the corners of every cell (a
     /// bilinear cell's determinant is extreme at its corners along each edge; this is the
     /// figure of the monotonicity check: it must be > 0 for an invertible table).
+    /// NaN for an invalid table.
     pub fn min_jacobian_determinant(&self) -> f64 {
+        if self.validate().is_err() {
+            return f64::NAN;
+        }
         let (w, h) = (self.width as usize, self.height as usize);
         let mut min = f64::INFINITY;
         for j in 0..h - 1 {
