@@ -1,6 +1,6 @@
 //! The enum of every camera model, with static dispatch of [`CameraModel`].
 
-use super::{CameraModel, Equirectangular, KannalaBrandt, Lut, Pinhole, Pixel};
+use super::{CameraModel, Equirectangular, KannalaBrandt, Lut, Pinhole, Pixel, TabulatedPinhole};
 use nalgebra::{Matrix2x3, Matrix3x2, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -28,6 +28,8 @@ pub enum Camera {
     Equirectangular(Equirectangular),
     /// A pixel → bearing lookup table.
     Lut(Lut),
+    /// A pinhole with tabulated (NCLT `D2U`/`U2D`) distortion, or unbounded.
+    TabulatedPinhole(TabulatedPinhole),
 }
 
 macro_rules! dispatch {
@@ -37,6 +39,7 @@ macro_rules! dispatch {
             Camera::KannalaBrandt($m) => $e,
             Camera::Equirectangular($m) => $e,
             Camera::Lut($m) => $e,
+            Camera::TabulatedPinhole($m) => $e,
         }
     };
 }
@@ -49,6 +52,7 @@ impl Camera {
             Camera::KannalaBrandt(_) => "kannala_brandt",
             Camera::Equirectangular(_) => "equirectangular",
             Camera::Lut(_) => "lut",
+            Camera::TabulatedPinhole(_) => "tabulated_pinhole",
         }
     }
 }
@@ -106,5 +110,11 @@ impl From<Equirectangular> for Camera {
 impl From<Lut> for Camera {
     fn from(m: Lut) -> Self {
         Camera::Lut(m)
+    }
+}
+
+impl From<TabulatedPinhole> for Camera {
+    fn from(m: TabulatedPinhole) -> Self {
+        Camera::TabulatedPinhole(m)
     }
 }

@@ -47,17 +47,21 @@
 
 mod camera;
 mod equirectangular;
+pub mod formats;
 mod kannala_brandt;
 mod lut;
 mod pinhole;
 mod rig;
+mod tabulated_pinhole;
 
 pub use camera::Camera;
 pub use equirectangular::*;
+pub use formats::{Format, LoadError, load, save_native};
 pub use kannala_brandt::*;
 pub use lut::*;
 pub use pinhole::*;
 pub use rig::*;
+pub use tabulated_pinhole::{DistortionTable, TabulatedPinhole, TabulatedPinholeParams};
 
 use nalgebra::{Matrix2, Matrix2x3, Matrix3, Matrix3x2, Vector2, Vector3};
 use thiserror::Error;
