@@ -14,7 +14,6 @@
 //! ```
 
 pub mod calibration;
-pub mod calibration;
 pub mod calibration_files;
 pub mod pnp;
 pub mod rays;
