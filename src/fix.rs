@@ -19,8 +19,10 @@
 //!   pose is statistically distinct from the best ([`DISTINCT_POSE_CHI2`]) makes the fix
 //!   `ambiguous`. (A full RANSAC with adaptive stopping arrives with the matcher.)
 //!
-//! The P3P hypotheses use the ray directions only (a central camera); the refinement and the
-//! covariance use the ray origins as given. For now the origins are zero (one centre).
+//! The P3P hypotheses use the ray directions only (a central-camera approximation: for a
+//! Ladybug-class rig the camera centres are a few centimetres apart); the scoring, the
+//! refinement and the covariance use the ray origins as given (the camera centres in the
+//! rig frame), so the final fix is exact for non-central rigs too.
 //!
 //! # Covariance
 //! A landmark surveyed with standard deviation `σ_m` per axis at range `ρ` adds angular

@@ -13,6 +13,7 @@
 //! - [`attitude`]: rotation from known directions ([`attitude::triad`], [`attitude::wahba`]).
 //! - [`triangulation`]: landmark positions from rays ([`triangulation::intersect_two_rays`],
 //!   [`triangulation::triangulate_rays`]).
+//! - [`calibration`]: camera models (pinhole, fisheye, panorama, LUT) and the camera rig.
 //! - [`synthetic`]: the shared synthetic-problem generator used by tests and benchmarks.
 //! - [`io`]: readers for the CSV inputs, with errors that name file, line and field.
 //! - [`cli`]: the command implementations behind the thin `vgps` binary.
@@ -42,6 +43,7 @@
 #![forbid(unsafe_code)]
 
 pub mod attitude;
+pub mod calibration;
 pub mod cli;
 pub mod fix;
 pub mod geo;

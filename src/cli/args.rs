@@ -36,6 +36,8 @@ pub enum Command {
     Triangulate(TriangulateArgs),
     /// A small built-in example on synthetic data.
     Demo,
+    /// Inspect, check, use and convert calibration files.
+    Calib(super::calib::CalibArgs),
 }
 
 /// Arguments of `vgps locate`.
@@ -47,7 +49,8 @@ pub struct LocateArgs {
     /// Observations CSV: [frame,](bx,by,bz | camera,u,v)[,landmark].
     #[arg(long, value_name = "O.csv")]
     pub observations: PathBuf,
-    /// Camera calibration file (needed for pixel observations; not supported yet).
+    /// Camera calibration of the rig (native JSON, Ladybug INI, NCLT; see `vgps calib`),
+    /// needed for pixel observations `camera,u,v`.
     #[arg(long, value_name = "FILE")]
     pub calibration: Option<PathBuf>,
     /// Position prior: latitude and longitude (degrees), height (m), radius (m).
@@ -134,6 +137,8 @@ pub struct LocateSettings {
     pub landmarks: PathBuf,
     /// The observations file.
     pub observations: PathBuf,
+    /// The rig calibration, if any (turns pixel observations into rays).
+    pub calibration: Option<PathBuf>,
     /// The position prior, if any.
     pub prior: Option<PriorArg>,
     /// Bearing standard deviation per tangent axis, radians.
@@ -152,7 +157,7 @@ pub struct TriangulateSettings {
 }
 
 /// What to run, with validated settings.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Debug)]
 pub enum Settings {
     /// `vgps locate`.
     Locate(LocateSettings),
@@ -160,6 +165,8 @@ pub enum Settings {
     Triangulate(TriangulateSettings),
     /// `vgps demo`.
     Demo,
+    /// `vgps calib …` (validated by its own module).
+    Calib(super::calib::CalibArgs),
 }
 
 impl TryFrom<Cli> for Settings {
@@ -167,28 +174,20 @@ impl TryFrom<Cli> for Settings {
 
     fn try_from(cli: Cli) -> Result<Self, CliError> {
         Ok(match cli.command {
-            Command::Locate(a) => {
-                if let Some(path) = a.calibration {
-                    return Err(CliError::Unsupported(format!(
-                        "--calibration {}: camera models arrive with the calibration issue; \
-                         calibration files cannot be read yet (give bearings bx,by,bz instead \
-                         of pixels)",
-                        path.display()
-                    )));
-                }
-                Settings::Locate(LocateSettings {
-                    landmarks: a.landmarks,
-                    observations: a.observations,
-                    prior: a.prior,
-                    sigma_rad: a.sigma_deg.to_radians(),
-                })
-            }
+            Command::Locate(a) => Settings::Locate(LocateSettings {
+                landmarks: a.landmarks,
+                observations: a.observations,
+                calibration: a.calibration,
+                prior: a.prior,
+                sigma_rad: a.sigma_deg.to_radians(),
+            }),
             Command::Triangulate(a) => Settings::Triangulate(TriangulateSettings {
                 rays: a.rays,
                 sigma_ang_rad: a.sigma_deg.to_radians(),
                 sigma_pos_m: a.sigma_pos_m,
             }),
             Command::Demo => Settings::Demo,
+            Command::Calib(a) => Settings::Calib(a),
         })
     }
 }
@@ -248,10 +247,10 @@ mod tests {
             "c",
         ])
         .unwrap();
-        assert!(matches!(
-            Settings::try_from(cli),
-            Err(CliError::Unsupported(_))
-        ));
+        let Settings::Locate(s) = Settings::try_from(cli).unwrap() else {
+            panic!("not locate")
+        };
+        assert_eq!(s.calibration, Some(PathBuf::from("c")));
         assert!(
             Cli::try_parse_from(["vgps", "triangulate", "--rays", "R", "--sigma-deg", "-1"])
                 .is_err()

@@ -133,15 +133,16 @@ pub fn run(out: &mut dyn Write) -> Result<(), CliError> {
     )?;
     let scene = demo_scene()?;
     let mut notes = Vec::new();
-    let reports = super::locate::locate(
-        &scene.landmarks,
-        Path::new("<demo landmarks>"),
-        &scene.observations,
-        Path::new("<demo observations>"),
-        None,
-        DEMO_SIGMA_DEG.to_radians(),
-        &mut notes,
-    )?;
+    let input = super::locate::LocateInput {
+        landmarks: &scene.landmarks,
+        landmarks_path: Path::new("<demo landmarks>"),
+        observations: &scene.observations,
+        observations_path: Path::new("<demo observations>"),
+        rig: None,
+        prior: None,
+        sigma_rad: DEMO_SIGMA_DEG.to_radians(),
+    };
+    let reports = super::locate::locate(&input, &mut notes)?;
     for (report, truth) in reports.iter().zip(&scene.truth) {
         let json = serde_json::to_string(report).map_err(std::io::Error::from)?;
         writeln!(out, "{json}")?;

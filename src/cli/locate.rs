@@ -2,6 +2,7 @@
 
 use super::{CliError, LocateSettings, PriorArg};
 use crate::attitude::HeadingPitchRoll;
+use crate::calibration::{Pixel, Rig};
 use crate::fix::{Fix, FixOptions, FixStatus, Prior, compute_fix};
 use crate::geo::{Geodetic, LocalFrame};
 use crate::geometry::Ray;
@@ -90,16 +91,24 @@ pub fn run(
 ) -> Result<(), CliError> {
     let landmarks = crate::io::read_landmarks(&settings.landmarks)?;
     let observations = crate::io::read_observations(&settings.observations)?;
+    let rig = match &settings.calibration {
+        None => None,
+        Some(path) => Some(
+            crate::calibration::formats::load(path, None, None)
+                .map_err(|e| CliError::Calibration(format!("{}: {e}", path.display())))?,
+        ),
+    };
     let mut notes = Vec::new();
-    let reports = locate(
-        &landmarks,
-        &settings.landmarks,
-        &observations,
-        &settings.observations,
-        settings.prior.as_ref(),
-        settings.sigma_rad,
-        &mut notes,
-    )?;
+    let input = LocateInput {
+        landmarks: &landmarks,
+        landmarks_path: &settings.landmarks,
+        observations: &observations,
+        observations_path: &settings.observations,
+        rig: rig.as_ref(),
+        prior: settings.prior.as_ref(),
+        sigma_rad: settings.sigma_rad,
+    };
+    let reports = locate(&input, &mut notes)?;
     for note in notes {
         writeln!(err, "vgps: {note}")?;
     }
@@ -110,8 +119,27 @@ pub fn run(
     Ok(())
 }
 
-/// Locates every frame of `observations` against `landmarks` (the paths are used in error
-/// messages). Frames are reported in increasing frame number; a frame's rows need not be
+/// The inputs of [`locate`], as read from the files.
+#[derive(Clone, Copy, Debug)]
+pub struct LocateInput<'a> {
+    /// The landmarks.
+    pub landmarks: &'a [Landmark],
+    /// Their file (for error messages).
+    pub landmarks_path: &'a Path,
+    /// The observations.
+    pub observations: &'a [Observation],
+    /// Their file (for error messages).
+    pub observations_path: &'a Path,
+    /// The rig calibration that turns pixel observations into rays (origin = camera centre
+    /// in the rig frame), if any.
+    pub rig: Option<&'a Rig>,
+    /// The position prior, if any.
+    pub prior: Option<&'a PriorArg>,
+    /// Bearing standard deviation per tangent axis, radians.
+    pub sigma_rad: f64,
+}
+
+/// Locates every frame of the observations against the landmarks. Frames are reported in increasing frame number; a frame's rows need not be
 /// contiguous. Human-readable notes (e.g. about frames that need the matcher) are appended
 /// to `notes`.
 ///
@@ -119,18 +147,22 @@ pub fn run(
 /// otherwise at the centroid (in ECEF) of all landmarks.
 ///
 /// # Errors
-/// [`CliError::Input`] naming the file, line and field for a pixel observation (camera
-/// models arrive with the calibration issue), an unknown landmark id or a landmark whose
-/// coordinates the geodetic conversion rejects.
+/// [`CliError::Input`] naming the file, line and field for a pixel observation without a
+/// rig calibration, a camera the calibration does not have or a pixel outside its image, an
+/// unknown landmark id, or a landmark whose coordinates the geodetic conversion rejects.
 pub fn locate(
-    landmarks: &[Landmark],
-    landmarks_path: &Path,
-    observations: &[Observation],
-    observations_path: &Path,
-    prior: Option<&PriorArg>,
-    sigma_rad: f64,
+    input: &LocateInput<'_>,
     notes: &mut Vec<String>,
 ) -> Result<Vec<FrameReport>, CliError> {
+    let LocateInput {
+        landmarks,
+        landmarks_path,
+        observations,
+        observations_path,
+        rig,
+        prior,
+        sigma_rad,
+    } = *input;
     let mut geodetic: HashMap<&str, (Geodetic, f64)> = HashMap::new();
     for l in landmarks {
         let g = Geodetic::try_new(l.lat_deg, l.lon_deg, l.alt_m)
@@ -140,18 +172,35 @@ pub fn locate(
     // Per observation: its ray and its landmark (`None`: no landmark id).
     let mut resolved: Vec<Option<(Ray, Geodetic, f64)>> = Vec::with_capacity(observations.len());
     for o in observations {
-        let Measurement::Bearing(b) = &o.measurement else {
-            return Err(InputError::field(
-                observations_path,
-                o.line,
-                "camera",
-                "pixel observations need --calibration (camera models arrive with the \
-                 calibration issue)",
-            )
-            .into());
+        let ray = match (&o.measurement, rig) {
+            (Measurement::Bearing(b), _) => {
+                Ray::try_new(Vector3::zeros(), *b).ok_or_else(|| {
+                    InputError::field(observations_path, o.line, "bx", "zero bearing")
+                })?
+            }
+            (Measurement::Pixel { .. }, None) => {
+                return Err(InputError::field(
+                    observations_path,
+                    o.line,
+                    "camera",
+                    "pixel observations need --calibration (the rig's camera calibration)",
+                )
+                .into());
+            }
+            (Measurement::Pixel { camera, u, v }, Some(rig)) => {
+                let index: usize = camera.parse().map_err(|_| {
+                    InputError::field(
+                        observations_path,
+                        o.line,
+                        "camera",
+                        format!("`{camera}` is not a camera index of the calibration"),
+                    )
+                })?;
+                rig.ray(index, &Pixel::new(*u, *v)).map_err(|e| {
+                    InputError::field(observations_path, o.line, "camera", e.to_string())
+                })?
+            }
         };
-        let ray = Ray::try_new(Vector3::zeros(), *b)
-            .ok_or_else(|| InputError::field(observations_path, o.line, "bx", "zero bearing"))?;
         let Some(id) = &o.landmark else {
             resolved.push(None);
             continue;

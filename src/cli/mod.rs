@@ -9,6 +9,7 @@
 //! - `2`: a usage error or an invalid input file (the message names file, line and field).
 
 pub mod args;
+pub mod calib;
 pub mod demo;
 pub mod locate;
 pub mod triangulate;
@@ -19,6 +20,7 @@ use crate::io::InputError;
 use clap::Parser;
 use std::ffi::OsString;
 use std::io::Write;
+use std::process::ExitCode;
 
 /// Exit code of a usage error or an invalid input.
 pub const EXIT_INPUT: u8 = 2;
@@ -31,9 +33,9 @@ pub enum CliError {
     /// An input file is invalid (names the file, line and field).
     #[error(transparent)]
     Input(#[from] InputError),
-    /// A feature the input asks for does not exist yet.
+    /// The calibration file could not be loaded.
     #[error("{0}")]
-    Unsupported(String),
+    Calibration(String),
     /// An internal inconsistency (a bug: please report it).
     #[error("internal error: {0}")]
     Internal(String),
@@ -46,23 +48,23 @@ impl CliError {
     /// The process exit code of this error.
     pub fn exit_code(&self) -> u8 {
         match self {
-            Self::Input(_) | Self::Unsupported(_) => EXIT_INPUT,
+            Self::Input(_) | Self::Calibration(_) => EXIT_INPUT,
             Self::Output(_) | Self::Internal(_) => EXIT_OUTPUT,
         }
     }
 }
 
 /// Runs the command line and returns the process exit code.
-pub fn main() -> std::process::ExitCode {
+pub fn main() -> ExitCode {
     let stdout = std::io::stdout();
     let stderr = std::io::stderr();
-    let code = run(std::env::args_os(), &mut stdout.lock(), &mut stderr.lock());
-    std::process::ExitCode::from(code)
+    run(std::env::args_os(), &mut stdout.lock(), &mut stderr.lock())
 }
 
 /// Parses `args` (the first is the program name), runs the command and returns the exit
-/// code; results go to `out`, diagnostics to `err`.
-pub fn run<I, T>(args: I, out: &mut dyn Write, err: &mut dyn Write) -> u8
+/// code; results go to `out`, diagnostics to `err` (`vgps calib` writes to the process's
+/// stdout and stderr itself).
+pub fn run<I, T>(args: I, out: &mut dyn Write, err: &mut dyn Write) -> ExitCode
 where
     I: IntoIterator<Item = T>,
     T: Into<OsString> + Clone,
@@ -74,19 +76,24 @@ where
             let sink: &mut dyn Write = if e.use_stderr() { err } else { out };
             // Nothing more can be reported if even this write fails.
             let _ = write!(sink, "{}", e.render());
-            return code;
+            return ExitCode::from(code);
         }
     };
+    if let args::Command::Calib(calib_args) = cli.command {
+        return calib::run(calib_args);
+    }
     let result = Settings::try_from(cli).and_then(|settings| match settings {
         Settings::Locate(s) => locate::run(&s, out, err),
         Settings::Triangulate(s) => triangulate::run(&s, out, err),
         Settings::Demo => demo::run(out),
+        // Handled above: `vgps calib` reports on its own.
+        Settings::Calib(_) => Ok(()),
     });
     match result.and_then(|()| out.flush().map_err(CliError::from)) {
-        Ok(()) => 0,
+        Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             let _ = writeln!(err, "vgps: error: {e}");
-            e.exit_code()
+            ExitCode::from(e.exit_code())
         }
     }
 }

@@ -17,7 +17,7 @@ const EXPECTED: &str = "[frame,](bx,by,bz | camera,u,v)[,landmark]";
 pub enum Measurement {
     /// A unit bearing in the rig frame (x forward, y left, z up).
     Bearing(Vector3<f64>),
-    /// A pixel of one camera of the rig; needs a camera model to become a bearing.
+    /// A pixel of one camera of the rig; a rig calibration turns it into a ray.
     Pixel {
         /// The camera identifier, as written in the file.
         camera: String,

@@ -13,7 +13,10 @@
 //! }
 //! ```
 
+pub mod calibration;
+pub mod calibration_files;
 pub mod pnp;
+pub mod rays;
 pub use pnp::{PnpConfig, PnpProblem, RigModel, ladybug_camera_centres, perturb_pose};
 
 use crate::geometry::{Pose, bearing_in_rig, try_unit};
