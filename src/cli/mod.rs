@@ -91,6 +91,8 @@ where
     });
     match result.and_then(|()| out.flush().map_err(CliError::from)) {
         Ok(()) => ExitCode::SUCCESS,
+        // The reader went away (`vgps locate … | head`): stop quietly, as Unix tools do.
+        Err(CliError::Output(e)) if e.kind() == std::io::ErrorKind::BrokenPipe => ExitCode::SUCCESS,
         Err(e) => {
             let _ = writeln!(err, "vgps: error: {e}");
             ExitCode::from(e.exit_code())
