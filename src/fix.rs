@@ -5,7 +5,7 @@
 //! `world_from_rig`, its 6×6 covariance and the inlier flags.
 //!
 //! # Method
-//! - **n = 3**: [`crate::solvers::p3p`] gives up to four poses. One solution is used as is;
+//! - **n = 3**: [`crate::solvers::p3p`](fn@crate::solvers::p3p) gives up to four poses. One solution is used as is;
 //!   with several, a prior (a position and a radius) may pick exactly one; otherwise the
 //!   status is `ambiguous` and the candidates are returned — the fix never guesses.
 //! - **n ≥ 4**: pose hypotheses from P3P on triples (every triple while there are at most
@@ -13,7 +13,7 @@
 //!   fixed seed, so the result is reproducible), each scored by the number of observations
 //!   whose angular residual is within [`FixOptions::inlier_threshold_sigmas`] standard
 //!   deviations (ties broken by the truncated squared residuals, as in MSAC). The best is
-//!   refined with [`crate::solvers::refine_pose`] on its inliers, the inliers are re-scored
+//!   refined with [`crate::solvers::refine_pose`](fn@crate::solvers::refine_pose) on its inliers, the inliers are re-scored
 //!   against the refined pose and the refinement repeated until they settle. A runner-up
 //!   supported by nearly as many observations (see [`AMBIGUITY_FRACTION`]) whose own refined
 //!   pose is statistically distinct from the best ([`DISTINCT_POSE_CHI2`]) makes the fix

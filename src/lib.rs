@@ -8,12 +8,15 @@
 //! - [`geo`]: WGS84 geodetic ↔ ECEF ↔ local ENU frames.
 //! - [`geometry`]: the shared types (poses, rays, solution lists) and small vector helpers.
 //! - [`solvers`]: minimal and non-minimal pose solvers, one per file, uniform signatures:
-//!   [`solvers::p3p_cosines`] (the law-of-cosines P3P of the Visual GPS proposal),
-//!   [`solvers::p3p`] (Lambda Twist), [`solvers::trilaterate`] and [`solvers::refine_pose`].
-//! - [`attitude`]: rotation from known directions ([`attitude::triad`], [`attitude::wahba`]).
-//! - [`triangulation`]: landmark positions from rays ([`triangulation::intersect_two_rays`],
-//!   [`triangulation::triangulate_rays`]).
-//! - [`calibration`]: camera models (pinhole, fisheye, panorama, LUT) and the camera rig.
+//!   [`solvers::p3p_cosines`](fn@solvers::p3p_cosines) (the law-of-cosines P3P of the Visual GPS proposal),
+//!   [`solvers::p3p`](fn@solvers::p3p) (Lambda Twist), [`solvers::trilaterate`](fn@solvers::trilaterate) and [`solvers::refine_pose`](fn@solvers::refine_pose).
+//! - [`attitude`]: rotation from known directions ([`attitude::triad`](fn@attitude::triad), [`attitude::wahba`](fn@attitude::wahba)).
+//! - [`triangulation`]: landmark positions from rays ([`triangulation::intersect_two_rays`](fn@triangulation::intersect_two_rays),
+//!   [`triangulation::triangulate_rays`](fn@triangulation::triangulate_rays)).
+//! - [`calibration`]: camera models (pinhole, fisheye, panorama, LUT, NCLT tables), the
+//!   camera rig, and the calibration file formats.
+//! - [`fix`]: a fix from bearings to known landmarks (hypotheses, inliers, refinement,
+//!   ambiguity and degeneracy statuses).
 //! - [`synthetic`]: the shared synthetic-problem generator used by tests and benchmarks.
 //! - [`io`]: readers for the CSV inputs, with errors that name file, line and field.
 //! - [`cli`]: the command implementations behind the thin `vgps` binary.

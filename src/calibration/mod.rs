@@ -61,7 +61,10 @@ pub use kannala_brandt::*;
 pub use lut::*;
 pub use pinhole::*;
 pub use rig::*;
-pub use tabulated_pinhole::{DistortionTable, TabulatedPinhole, TabulatedPinholeParams};
+pub use tabulated_pinhole::{
+    DistortionTable, TABLE_INVERSE_RESIDUAL, TABLE_INVERSE_TOLERANCE, TabulatedPinhole,
+    TabulatedPinholeParams,
+};
 
 use nalgebra::{Matrix2, Matrix2x3, Matrix3, Matrix3x2, Vector2, Vector3};
 use thiserror::Error;

@@ -43,10 +43,10 @@ pub enum Command {
 /// Arguments of `vgps locate`.
 #[derive(Debug, Args)]
 pub struct LocateArgs {
-    /// Landmarks CSV: id,lat,lon,alt[,sigma_m][,class].
+    /// Landmarks CSV: `id,lat,lon,alt[,sigma_m][,class]`.
     #[arg(long, value_name = "L.csv")]
     pub landmarks: PathBuf,
-    /// Observations CSV: [frame,](bx,by,bz | camera,u,v)[,landmark].
+    /// Observations CSV: `[frame,](bx,by,bz | camera,u,v)[,landmark]`.
     #[arg(long, value_name = "O.csv")]
     pub observations: PathBuf,
     /// Camera calibration of the rig (native JSON, Ladybug INI, NCLT; see `vgps calib`),
@@ -64,7 +64,7 @@ pub struct LocateArgs {
 /// Arguments of `vgps triangulate`.
 #[derive(Debug, Args)]
 pub struct TriangulateArgs {
-    /// Rays CSV: id,lat,lon,alt,de,dn,du[,sigma_pos_m][,sigma_ang_deg].
+    /// Rays CSV: `id,lat,lon,alt,de,dn,du[,sigma_pos_m][,sigma_ang_deg]`.
     #[arg(long, value_name = "R.csv")]
     pub rays: PathBuf,
     /// Direction standard deviation per tangent axis, degrees, for rows without

@@ -40,7 +40,7 @@ fn attitude_deg(heading: f64, pitch: f64, roll: f64) -> Rotation3<f64> {
 }
 
 /// A synthetic scene for the demo: landmarks, observations and the true poses (ENU at
-/// [`demo_origin`]) of each frame.
+/// `demo_origin`) of each frame.
 pub struct DemoScene {
     /// The local frame of the scene.
     pub local: LocalFrame,

@@ -17,14 +17,14 @@
 //! ```
 //! - `rotation` is the 3×3 matrix of `rig_from_camera`, **row-major** (`rotation[i][j]` =
 //!   `R_ij`; its columns are the camera's x, y, z axes in the rig frame); it must be
-//!   orthonormal with determinant +1 within [`ROTATION_TOLERANCE`](crate::calibration::ROTATION_TOLERANCE).
+//!   orthonormal with determinant +1 within [`ROTATION_TOLERANCE`].
 //!   `translation` is the camera centre in the rig frame, metres.
 //! - `camera` is tagged by `model`: `pinhole`, `kannala_brandt`, `equirectangular` (the
 //!   fields of their parameter structs), `lut` (`{"model": "lut", "file": "x.lut"}`: a LUT
 //!   file in the binary format of [`Lut`]) or `tabulated_pinhole` (the fields of
 //!   [`TabulatedPinholeParams`] with the two tables given as file names
 //!   `raw_to_undistorted` / `undistorted_to_raw` in the NCLT text layout of
-//!   [`nclt`](super::nclt)). Side-file paths are relative to the JSON file's directory.
+//!   [`nclt`]). Side-file paths are relative to the JSON file's directory.
 //! - Unknown fields are errors. Numbers are written in the shortest form that reads back
 //!   to the same `f64`, so write → read is exact.
 
