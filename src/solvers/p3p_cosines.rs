@@ -111,7 +111,7 @@ pub fn p3p_cosines(
     let Some(unit) = unit_bearings(bearings_in_rig) else {
         return out;
     };
-    for ranges in p3p_cosines_ranges(bearings_in_rig, points_in_world) {
+    for ranges in solve_unit(&unit, points_in_world, RESIDUAL_SAMPLES, true) {
         if let Some(pose) = pose_from_ranges(&unit, &ranges, points_in_world) {
             out.push(pose);
         }
@@ -166,7 +166,51 @@ fn unit_bearings(bearings: &[Vector3<f64>; 3]) -> Option<[Vector3<f64>; 3]> {
     ])
 }
 
-/// The residual of the third law-of-cosines equation along the (0, a) ellipse.
+/// Largest angle (radians) for which [`sin_cos_small`] uses its Taylor polynomials (the
+/// first omitted terms, `u¹⁷/17!` and `u¹⁸/18!`, are below 10⁻¹⁸ there).
+const SMALL_ANGLE: f64 = 0.55;
+
+/// `(sin u, cos u)` without a libm call for `|u| ≤` [`SMALL_ANGLE`] (Taylor polynomials of
+/// degree 15 and 16, full double precision), by libm beyond.
+#[inline]
+fn sin_cos_small(u: f64) -> (f64, f64) {
+    if u.abs() > SMALL_ANGLE {
+        return u.sin_cos();
+    }
+    let x = u * u;
+    // 1/k! for k = 2..=16.
+    const F: [f64; 15] = [
+        1.0 / 2.0,
+        1.0 / 6.0,
+        1.0 / 24.0,
+        1.0 / 120.0,
+        1.0 / 720.0,
+        1.0 / 5040.0,
+        1.0 / 40320.0,
+        1.0 / 362880.0,
+        1.0 / 3628800.0,
+        1.0 / 39916800.0,
+        1.0 / 479001600.0,
+        1.0 / 6227020800.0,
+        1.0 / 87178291200.0,
+        1.0 / 1307674368000.0,
+        1.0 / 20922789888000.0,
+    ];
+    let sin = u
+        * (1.0
+            - x * (F[1]
+                - x * (F[3]
+                    - x * (F[5] - x * (F[7] - x * (F[9] - x * (F[11] - x * F[13])))))));
+    let cos = 1.0
+        - x * (F[0]
+            - x * (F[2]
+                - x * (F[4]
+                    - x * (F[6] - x * (F[8] - x * (F[10] - x * (F[12] - x * F[14])))))));
+    (sin, cos)
+}
+
+/// The residual of the third law-of-cosines equation along the (0, a) ellipse, in units of
+/// the longest landmark distance.
 struct Residual {
     /// `R₀ₐ = s₀ₐ / sin θ₀ₐ`.
     radius: f64,
@@ -191,7 +235,38 @@ struct Sample {
     droot: f64,
 }
 
+/// The residual and its derivative at one parameter value `alpha`, with `(sin α, cos α)`.
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    alpha: f64,
+    sin: f64,
+    cos: f64,
+    g: f64,
+    dg: f64,
+}
+
+/// A root of the residual: the parameter (with its sine and cosine) and the `r_b` branch.
+#[derive(Clone, Copy)]
+struct Root {
+    alpha: f64,
+    sin: f64,
+    cos: f64,
+    sign: f64,
+}
+
+impl Node {
+    fn root(&self, sign: f64) -> Root {
+        Root {
+            alpha: self.alpha,
+            sin: self.sin,
+            cos: self.cos,
+            sign,
+        }
+    }
+}
+
 impl Residual {
+    #[inline]
     fn sample(&self, sin_a: f64, cos_a: f64) -> Sample {
         let r0 = self.radius * (self.sin_0a * cos_a + self.cos_0a * sin_a);
         let ra = self.radius * sin_a;
@@ -214,17 +289,14 @@ impl Residual {
         }
     }
 
-    fn at(&self, alpha: f64) -> Sample {
-        let (s, c) = alpha.sin_cos();
-        self.sample(s, c)
-    }
-
     /// `r_b` on branch `sign` (±1).
+    #[inline]
     fn rb(&self, x: &Sample, sign: f64) -> f64 {
         x.r0 * self.cos_0b + sign * x.root
     }
 
     /// The residual and its derivative with respect to α on branch `sign`.
+    #[inline]
     fn value(&self, x: &Sample, sign: f64) -> (f64, f64) {
         let rb = self.rb(x, sign);
         let drb = x.dr0 * self.cos_0b + sign * x.droot;
@@ -233,56 +305,66 @@ impl Residual {
         (g, dg)
     }
 
-    /// The root in `[lo, hi]` (with `g(lo)`, `g(hi)` of opposite signs or zero) by
+    /// The node at `base.alpha + u` on branch `sign` (sine and cosine by rotating the
+    /// base node's by `u`, no libm call for a small `u`).
+    #[inline]
+    fn node_from(&self, base: &Node, u: f64, sign: f64) -> Node {
+        let (su, cu) = sin_cos_small(u);
+        let sin = base.sin * cu + base.cos * su;
+        let cos = base.cos * cu - base.sin * su;
+        let (g, dg) = self.value(&self.sample(sin, cos), sign);
+        Node {
+            alpha: base.alpha + u,
+            sin,
+            cos,
+            g,
+            dg,
+        }
+    }
+
+    /// The root between nodes `a` and `b` (with `g` of opposite signs or zero) by
     /// safeguarded Newton iteration (Newton steps that leave the bracket or converge slowly
-    /// are replaced by bisection).
-    fn refine(&self, sign: f64, mut lo: f64, mut hi: f64, g_lo: f64, g_hi: f64) -> f64 {
-        if g_lo == 0.0 {
-            return lo;
+    /// are replaced by bisection), in the offset `u` from `a`.
+    fn refine(&self, sign: f64, a: &Node, b: &Node) -> Root {
+        if a.g == 0.0 {
+            return a.root(sign);
         }
-        if g_hi == 0.0 {
-            return hi;
+        if b.g == 0.0 {
+            return b.root(sign);
         }
+        let h = b.alpha - a.alpha;
         // Orient so that g(lo) < 0 < g(hi).
-        if g_lo > 0.0 {
-            std::mem::swap(&mut lo, &mut hi);
-        }
+        let (mut lo, mut hi) = if a.g < 0.0 { (0.0, h) } else { (h, 0.0) };
         // Start from the secant point.
-        let mut x = lo + (hi - lo) * (g_lo.abs() / (g_lo.abs() + g_hi.abs()));
-        let mut step_old = (hi - lo).abs();
-        let mut step = step_old;
-        let (mut g, mut dg) = self.value(&self.at(x), sign);
+        let mut x = h * (a.g.abs() / (a.g.abs() + b.g.abs()));
+        let mut step_old = h;
+        let mut step = h;
+        let mut m = self.node_from(a, x, sign);
         for _ in 0..MAX_REFINE_ITERATIONS {
-            if g == 0.0 {
-                return x;
+            if m.g == 0.0 {
+                break;
             }
-            let newton_leaves = ((x - hi) * dg - g) * ((x - lo) * dg - g) > 0.0;
-            if newton_leaves || (2.0 * g).abs() > (step_old * dg).abs() {
+            let newton_leaves = ((x - hi) * m.dg - m.g) * ((x - lo) * m.dg - m.g) > 0.0;
+            if newton_leaves || (2.0 * m.g).abs() > (step_old * m.dg).abs() {
                 step_old = step;
                 step = 0.5 * (hi - lo);
                 x = lo + step;
             } else {
                 step_old = step;
-                step = g / dg;
+                step = m.g / m.dg;
                 x -= step;
             }
-            if step.abs() <= 2.0 * f64::EPSILON * x.abs().max(1.0) {
-                return x;
+            m = self.node_from(a, x, sign);
+            if step.abs() <= 2.0 * f64::EPSILON * m.alpha.abs().max(1.0) {
+                break;
             }
-            (g, dg) = self.value(&self.at(x), sign);
-            if g < 0.0 {
+            if m.g < 0.0 {
                 lo = x;
             } else {
                 hi = x;
             }
         }
-        x
-    }
-
-    /// The residual and its derivative on branch `sign` at `alpha`.
-    fn node(&self, alpha: f64, sign: f64) -> Node {
-        let (g, dg) = self.value(&self.at(alpha), sign);
-        Node { alpha, g, dg }
+        m.root(sign)
     }
 
     /// Every root of the residual on branch `sign` in `(a, b]`, pushed to `roots`.
@@ -304,10 +386,10 @@ impl Residual {
         b: Node,
         depth: u32,
         tangent_tolerance: f64,
-        roots: &mut ArrayVec<(f64, f64), 16>,
+        roots: &mut ArrayVec<Root, 16>,
     ) {
         if b.g == 0.0 {
-            let _ = roots.try_push((b.alpha, sign));
+            let _ = roots.try_push(b.root(sign));
             return;
         }
         if a.g == 0.0 {
@@ -317,12 +399,11 @@ impl Residual {
         let splittable = depth < MAX_SPLIT_DEPTH && h > MIN_SPLIT_WIDTH;
         if a.g * b.g < 0.0 {
             if splittable && let Some(t) = hermite_two_extrema(&a, &b) {
-                let m = self.node(a.alpha + t * h, sign);
+                let m = self.node_from(&a, t * h, sign);
                 self.scan(sign, a, m, depth + 1, tangent_tolerance, roots);
                 self.scan(sign, m, b, depth + 1, tangent_tolerance, roots);
             } else {
-                let root = self.refine(sign, a.alpha, b.alpha, a.g, b.g);
-                let _ = roots.try_push((root, sign));
+                let _ = roots.try_push(self.refine(sign, &a, &b));
             }
             return;
         }
@@ -330,55 +411,82 @@ impl Residual {
         let s = a.g.signum();
         let (fa, fb, dfa, dfb) = (s * a.g, s * b.g, s * a.dg, s * b.dg);
         if dfa < 0.0 && dfb > 0.0 {
-            let t = (fb - fa - dfb * h) / (dfa - dfb);
-            if fa + dfa * t > 0.0 {
+            if tangents_clear(fa, fb, dfa, dfb, h) {
                 return;
             }
+            let t = (fb - fa - dfb * h) / (dfa - dfb);
             if !splittable {
-                let m = self.node(a.alpha + t.clamp(0.0, h), sign);
+                let m = self.node_from(&a, t.clamp(0.0, h), sign);
                 if m.g.abs() <= tangent_tolerance {
-                    let _ = roots.try_push((m.alpha, sign));
+                    let _ = roots.try_push(m.root(sign));
                 }
                 return;
             }
-            let m = self.node(a.alpha + t.clamp(0.01 * h, 0.99 * h), sign);
+            let m = self.node_from(&a, t.clamp(0.01 * h, 0.99 * h), sign);
             self.scan(sign, a, m, depth + 1, tangent_tolerance, roots);
             self.scan(sign, m, b, depth + 1, tangent_tolerance, roots);
         } else if splittable && let Some(t) = hermite_two_extrema(&a, &b) {
-            let m = self.node(a.alpha + t * h, sign);
+            let m = self.node_from(&a, t * h, sign);
             self.scan(sign, a, m, depth + 1, tangent_tolerance, roots);
             self.scan(sign, m, b, depth + 1, tangent_tolerance, roots);
         }
     }
 }
 
-/// The residual and its derivative at one parameter value.
-#[derive(Clone, Copy, Debug)]
-struct Node {
-    alpha: f64,
-    g: f64,
-    dg: f64,
+/// Whether the tangent lines of `f = |g|` at the ends of an interval of width `h` (`f`
+/// falling at the start, `dfa < 0`, rising at the end, `dfb > 0`) meet above zero: then a
+/// convex `f` has no root inside. Division-free form of `fa + dfa t > 0` with
+/// `t = (fb − fa − dfb h) / (dfa − dfb)` (the denominator is negative).
+#[inline]
+fn tangents_clear(fa: f64, fb: f64, dfa: f64, dfb: f64, h: f64) -> bool {
+    dfa * fb - fa * dfb - dfa * dfb * h < 0.0
+}
+
+/// Whether an interval without a sign change may hold roots and must be scanned: the
+/// same tests as [`Residual::scan`], evaluated without divisions.
+#[inline]
+fn same_sign_needs_scan(a: &Node, b: &Node) -> bool {
+    let h = b.alpha - a.alpha;
+    let s = if a.g < 0.0 { -1.0 } else { 1.0 };
+    let (dfa, dfb) = (s * a.dg, s * b.dg);
+    if dfa < 0.0 && dfb > 0.0 {
+        !tangents_clear(s * a.g, s * b.g, dfa, dfb, h)
+    } else {
+        hermite_has_two_extrema(a, b, h)
+    }
+}
+
+/// The coefficients `(m0, qa, qb)` of `H'(t) = qa t² + qb t + m0` of the cubic Hermite
+/// interpolant of two nodes on `t ∈ [0, 1]`, and `m1 = H'(1)`.
+#[inline]
+fn hermite_slope(a: &Node, b: &Node, h: f64) -> (f64, f64, f64, f64) {
+    let (m0, m1, delta) = (a.dg * h, b.dg * h, b.g - a.g);
+    let qa = 3.0 * (m0 + m1) - 6.0 * delta;
+    let qb = 6.0 * delta - 4.0 * m0 - 2.0 * m1;
+    (m0, m1, qa, qb)
+}
+
+/// Whether the cubic Hermite interpolant of two nodes has two critical points strictly
+/// inside the interval: `m0`, `m1` of the same sign, and the vertex `t = −qb / 2qa` inside
+/// with `H'` of the other sign there (`m0 − qb²/4qa`), all without division.
+#[inline]
+fn hermite_has_two_extrema(a: &Node, b: &Node, h: f64) -> bool {
+    let (m0, m1, qa, qb) = hermite_slope(a, b, h);
+    m0 * m1 > 0.0
+        && qa * qb < 0.0
+        && (qb + 2.0 * qa) * qa > 0.0
+        && (4.0 * qa * m0 - qb * qb) * m0 * qa < 0.0
 }
 
 /// If the cubic Hermite interpolant of two nodes has two critical points strictly inside
 /// the interval, the midpoint between them as a fraction of the interval.
 fn hermite_two_extrema(a: &Node, b: &Node) -> Option<f64> {
     let h = b.alpha - a.alpha;
-    let (m0, m1, delta) = (a.dg * h, b.dg * h, b.g - a.g);
-    // H'(t) = qa t² + qb t + qc on t ∈ [0, 1], with H'(0) = m0 and H'(1) = m1. Two roots
-    // inside ⇔ m0 and m1 have the same sign and the vertex lies inside with H' of the other
-    // sign there; their midpoint is the vertex.
-    if m0 * m1 <= 0.0 {
+    if !hermite_has_two_extrema(a, b, h) {
         return None;
     }
-    let qa = 3.0 * (m0 + m1) - 6.0 * delta;
-    let qb = 6.0 * delta - 4.0 * m0 - 2.0 * m1;
-    if qa == 0.0 {
-        return None;
-    }
-    let t = -qb / (2.0 * qa);
-    let at_vertex = m0 - qb * qb / (4.0 * qa);
-    (t > 0.0 && t < 1.0 && at_vertex * m0 < 0.0).then_some(t)
+    let (_, _, qa, qb) = hermite_slope(a, b, h);
+    Some(-qb / (2.0 * qa))
 }
 
 /// The law-of-cosines root search with a given sampling (exposed to the crate for the
@@ -389,21 +497,35 @@ pub(crate) fn solve_ranges(
     samples: usize,
     search_extrema: bool,
 ) -> RangeSolutions {
+    match unit_bearings(bearings_in_rig) {
+        Some(d) => solve_unit(&d, points_in_world, samples, search_extrema),
+        None => RangeSolutions::new(),
+    }
+}
+
+/// [`solve_ranges`] for unit bearings.
+fn solve_unit(
+    d: &[Vector3<f64>; 3],
+    points_in_world: &[Vector3<f64>; 3],
+    samples: usize,
+    search_extrema: bool,
+) -> RangeSolutions {
     let mut out = RangeSolutions::new();
-    let Some(d) = unit_bearings(bearings_in_rig) else {
-        return out;
-    };
     if !points_in_world.iter().all(is_finite) {
         return out;
     }
     let x = points_in_world;
     let (e01, e02, e12) = (x[1] - x[0], x[2] - x[0], x[2] - x[1]);
-    let (s01, s02, s12) = (e01.norm(), e02.norm(), e12.norm());
-    let longest = s01.max(s02).max(s12);
-    let area2 = e01.cross(&e02).norm();
-    if area2.is_nan() || area2 <= MIN_TRIANGLE_SINE * longest * longest {
+    let (q01, q02, q12) = (e01.norm_squared(), e02.norm_squared(), e12.norm_squared());
+    let longest2 = q01.max(q02).max(q12);
+    let area2 = e01.cross(&e02).norm_squared();
+    if area2.is_nan() || area2 <= MIN_TRIANGLE_SINE * MIN_TRIANGLE_SINE * longest2 * longest2 {
         return out;
     }
+    // Work in units of the longest side (residual magnitudes O(1)).
+    let longest = longest2.sqrt();
+    let unit = 1.0 / longest;
+    let (s01, s02, s12) = (q01.sqrt() * unit, q02.sqrt() * unit, q12.sqrt() * unit);
     let cos = [d[0].dot(&d[1]), d[0].dot(&d[2]), d[1].dot(&d[2])];
     let sin = [
         d[0].cross(&d[1]).norm(),
@@ -436,52 +558,75 @@ pub(crate) fn solve_ranges(
     let theta = sin_0a.atan2(cos_0a);
     let alpha_end = PI - theta;
     let junction = FRAC_PI_2 - theta;
-    let scale = residual.radius.max(longest);
+    let scale = residual.radius.max(1.0);
 
     // Nodes: uniform in α (sines and cosines by the rotation recurrence), with the branch
-    // junction of rₐ inserted as an extra node. The end nodes have rₐ = 0 or r₀ = 0, so a
-    // root exactly there is no solution.
-    let mut found: ArrayVec<(f64, f64), 16> = ArrayVec::new();
-    // rb on the − branch is positive only where cos θ0b > 0 and r0 > s0b; r0 peaks at R0a
-    // (at the junction) or, past a right angle θ0a, at s0a (α = 0). Skip it when never so.
+    // junction of rₐ inserted as an extra node, so that r₀ is monotonic between nodes. The
+    // end nodes have rₐ = 0 or r₀ = 0, so a root exactly there is no solution.
+    let mut found: ArrayVec<Root, 16> = ArrayVec::new();
+    // r_b is positive on the + branch where cos θ0b ≥ 0 or r0 < s0b, on the − branch where
+    // cos θ0b > 0 and r0 > s0b. An interval (r0 monotonic) whose two ends are outside holds
+    // no solution on that branch. r0 peaks at R0a (at the junction) or, past a right angle
+    // θ0a, at s0a (α = 0): skip the − branch when r0 never exceeds s0b.
     let r0_max = if junction > 0.0 { residual.radius } else { s0a };
     let minus_branch = cos_0b > 0.0 && r0_max > s0b;
+    let plus_needs_small_r0 = cos_0b < 0.0;
     let tangent_tolerance = TANGENT_RESIDUAL_TOLERANCE * scale * scale;
     let n = samples.max(2);
     let step = alpha_end / n as f64;
-    let (sin_h, cos_h) = step.sin_cos();
+    let (sin_h, cos_h) = sin_cos_small(step);
     let mut junction_pending = junction > 0.0 && junction < alpha_end;
-    let node_pair = |alpha: f64, x: &Sample| {
-        [1.0, -1.0].map(|sign| {
-            let (g, dg) = residual.value(x, sign);
-            Node { alpha, g, dg }
-        })
-    };
-    let mut previous = node_pair(0.0, &residual.sample(0.0, 1.0));
-    let mut visit = |current: [Node; 2], previous: &mut [Node; 2]| {
-        for (k, sign) in [1.0, -1.0].into_iter().enumerate() {
-            if sign < 0.0 && !minus_branch {
+
+    let mut visit = |current: (f64, [Node; 2]), previous: &mut (f64, [Node; 2])| {
+        let (r0_a, r0_b) = (previous.0, current.0);
+        for k in 0..2 {
+            let (a, b) = (previous.1[k], current.1[k]);
+            let sign = if k == 0 { 1.0 } else { -1.0 };
+            let feasible = if k == 0 {
+                !plus_needs_small_r0 || r0_a.min(r0_b) < s0b
+            } else {
+                minus_branch && r0_a.max(r0_b) > s0b
+            };
+            if !feasible {
                 continue;
             }
-            let (a, b) = (previous[k], current[k]);
-            if search_extrema {
-                residual.scan(sign, a, b, 0, tangent_tolerance, &mut found);
-            } else if b.g == 0.0 {
-                let _ = found.try_push((b.alpha, sign));
+            if b.g == 0.0 {
+                let _ = found.try_push(b.root(sign));
             } else if a.g * b.g < 0.0 {
-                let root = residual.refine(sign, a.alpha, b.alpha, a.g, b.g);
-                let _ = found.try_push((root, sign));
+                if search_extrema {
+                    residual.scan(sign, a, b, 0, tangent_tolerance, &mut found);
+                } else {
+                    let _ = found.try_push(residual.refine(sign, &a, &b));
+                }
+            } else if search_extrema && a.g != 0.0 && same_sign_needs_scan(&a, &b) {
+                residual.scan(sign, a, b, 0, tangent_tolerance, &mut found);
             }
         }
         *previous = current;
     };
+    let node_pair = |alpha: f64, sin: f64, cos: f64| {
+        let x = residual.sample(sin, cos);
+        let node = |sign: f64| {
+            let (g, dg) = residual.value(&x, sign);
+            Node {
+                alpha,
+                sin,
+                cos,
+                g,
+                dg,
+            }
+        };
+        (x.r0, [node(1.0), node(-1.0)])
+    };
+    let mut previous = node_pair(0.0, 0.0, 1.0);
     let (mut sin_k, mut cos_k) = (0.0_f64, 1.0_f64);
     for k in 1..=n {
         let next_sin = sin_k * cos_h + cos_k * sin_h;
         cos_k = cos_k * cos_h - sin_k * sin_h;
         sin_k = next_sin;
         let alpha = if k == n {
-            (sin_k, cos_k) = alpha_end.sin_cos();
+            // sin(π − θ) = sin θ, cos(π − θ) = −cos θ.
+            (sin_k, cos_k) = (sin_0a, -cos_0a);
             alpha_end
         } else {
             k as f64 * step
@@ -489,20 +634,18 @@ pub(crate) fn solve_ranges(
         if junction_pending && junction <= alpha {
             junction_pending = false;
             if junction < alpha {
-                visit(node_pair(junction, &residual.at(junction)), &mut previous);
+                // sin(π/2 − θ) = cos θ, cos(π/2 − θ) = sin θ.
+                visit(node_pair(junction, cos_0a, sin_0a), &mut previous);
             }
         }
-        visit(
-            node_pair(alpha, &residual.sample(sin_k, cos_k)),
-            &mut previous,
-        );
+        visit(node_pair(alpha, sin_k, cos_k), &mut previous);
     }
 
     // Ranges of the roots: all positive, duplicates removed.
     let mut roots: ArrayVec<[f64; 3], 8> = ArrayVec::new();
-    for (alpha, sign) in found {
-        let p = residual.at(alpha);
-        let r = [p.r0, p.ra, residual.rb(&p, sign)];
+    for root in found {
+        let p = residual.sample(root.sin, root.cos);
+        let r = [p.r0, p.ra, residual.rb(&p, root.sign)];
         if r.iter().all(|v| *v > 0.0 && v.is_finite())
             && !roots
                 .iter()
@@ -511,8 +654,9 @@ pub(crate) fn solve_ranges(
             let _ = roots.try_push(r);
         }
     }
-    roots.sort_by(|p, q| p[0].total_cmp(&q[0]));
+    roots.sort_unstable_by(|p, q| p[0].total_cmp(&q[0]));
     for r in roots.into_iter().take(4) {
+        let r = r.map(|v| v * longest);
         out.push(if swap { [r[0], r[2], r[1]] } else { r });
     }
     out
