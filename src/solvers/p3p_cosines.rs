@@ -211,6 +211,10 @@ fn sin_cos_small(u: f64) -> (f64, f64) {
 
 /// The residual of the third law-of-cosines equation along the (0, a) ellipse, in units of
 /// the longest landmark distance.
+///
+/// With `rb± = r₀ cos θ₀b ± √(s₀b² − r₀² sin² θ₀b)`, the residual on both branches is
+/// `g± = A ± B √(…)` with `A = rₐ² + r₀² cos 2θ₀b + s₀b² − sₐb² − 2 cos θₐb cos θ₀b rₐ r₀`
+/// and `B = 2 (r₀ cos θ₀b − cos θₐb rₐ)`: one evaluation serves both branches.
 struct Residual {
     /// `R₀ₐ = s₀ₐ / sin θ₀ₐ`.
     radius: f64,
@@ -220,19 +224,37 @@ struct Residual {
     sin2_0b: f64,
     s2_0b: f64,
     cos_ab: f64,
-    s2_ab: f64,
+    /// `cos 2θ₀b`.
+    cos2_0b: f64,
+    /// `2 cos θₐb cos θ₀b`.
+    k_ab: f64,
+    /// `s₀b² − sₐb²`.
+    k0: f64,
 }
 
-/// The ranges along the ellipse at one parameter value, shared by both `r_b` branches.
+/// The ranges and the residual terms at one parameter value, shared by both `r_b` branches.
 #[derive(Clone, Copy)]
 struct Sample {
     r0: f64,
     ra: f64,
-    dr0: f64,
-    dra: f64,
-    /// `√(s₀b² − r₀² sin² θ₀b)` and its derivative.
+    /// `√(s₀b² − r₀² sin² θ₀b)`.
     root: f64,
-    droot: f64,
+    /// `g± = a ± b·root`, `g±' = da ± db_root`.
+    a: f64,
+    b: f64,
+    da: f64,
+    db_root: f64,
+}
+
+impl Sample {
+    /// The residual and its derivative on branch `sign` (±1).
+    #[inline]
+    fn value(&self, sign: f64) -> (f64, f64) {
+        (
+            self.a + sign * (self.b * self.root),
+            self.da + sign * self.db_root,
+        )
+    }
 }
 
 /// The residual and its derivative at one parameter value `alpha`, with `(sin α, cos α)`.
@@ -245,10 +267,63 @@ struct Node {
     dg: f64,
 }
 
-/// A root of the residual: the parameter (with its sine and cosine) and the `r_b` branch.
+/// Number of sampling nodes evaluated together (the production sampling fits in one).
+const CHUNK: usize = 32;
+
+/// Sampling nodes as a structure of arrays: the parameter, its sine and cosine, `r₀`, and
+/// the residual with its derivative on both branches (`[+, −]`).
+struct Chunk {
+    alpha: [f64; CHUNK],
+    sin: [f64; CHUNK],
+    cos: [f64; CHUNK],
+    r0: [f64; CHUNK],
+    g: [[f64; CHUNK]; 2],
+    dg: [[f64; CHUNK]; 2],
+}
+
+impl Chunk {
+    fn new() -> Self {
+        Self {
+            alpha: [0.0; CHUNK],
+            sin: [0.0; CHUNK],
+            cos: [0.0; CHUNK],
+            r0: [0.0; CHUNK],
+            g: [[0.0; CHUNK]; 2],
+            dg: [[0.0; CHUNK]; 2],
+        }
+    }
+
+    /// Evaluates the residual at the first `len` nodes.
+    #[inline]
+    fn evaluate(&mut self, residual: &Residual, len: usize) {
+        let len = len.min(CHUNK);
+        let [gp, gm] = &mut self.g;
+        let [dgp, dgm] = &mut self.dg;
+        for i in 0..len {
+            let x = residual.sample(self.sin[i], self.cos[i]);
+            self.r0[i] = x.r0;
+            let br = x.b * x.root;
+            gp[i] = x.a + br;
+            gm[i] = x.a - br;
+            dgp[i] = x.da + x.db_root;
+            dgm[i] = x.da - x.db_root;
+        }
+    }
+
+    fn node(&self, branch: usize, i: usize) -> Node {
+        Node {
+            alpha: self.alpha[i],
+            sin: self.sin[i],
+            cos: self.cos[i],
+            g: self.g[branch][i],
+            dg: self.dg[branch][i],
+        }
+    }
+}
+
+/// A root of the residual: the parameter's sine and cosine and the `r_b` branch.
 #[derive(Clone, Copy)]
 struct Root {
-    alpha: f64,
     sin: f64,
     cos: f64,
     sign: f64,
@@ -257,7 +332,6 @@ struct Root {
 impl Node {
     fn root(&self, sign: f64) -> Root {
         Root {
-            alpha: self.alpha,
             sin: self.sin,
             cos: self.cos,
             sign,
@@ -279,13 +353,19 @@ impl Residual {
         } else {
             0.0
         };
+        let a = ra * ra + self.cos2_0b * (r0 * r0) - self.k_ab * (ra * r0) + self.k0;
+        let da = 2.0 * (ra * dra + self.cos2_0b * (r0 * dr0))
+            - self.k_ab * (dra * r0 + ra * dr0);
+        let b = 2.0 * (r0 * self.cos_0b - self.cos_ab * ra);
+        let db = 2.0 * (dr0 * self.cos_0b - self.cos_ab * dra);
         Sample {
             r0,
             ra,
-            dr0,
-            dra,
             root,
-            droot,
+            a,
+            b,
+            da,
+            db_root: db * root + b * droot,
         }
     }
 
@@ -295,24 +375,12 @@ impl Residual {
         x.r0 * self.cos_0b + sign * x.root
     }
 
-    /// The residual and its derivative with respect to α on branch `sign`.
-    #[inline]
-    fn value(&self, x: &Sample, sign: f64) -> (f64, f64) {
-        let rb = self.rb(x, sign);
-        let drb = x.dr0 * self.cos_0b + sign * x.droot;
-        let g = x.ra * x.ra + rb * rb - 2.0 * self.cos_ab * x.ra * rb - self.s2_ab;
-        let dg = 2.0 * (x.ra * x.dra + rb * drb - self.cos_ab * (x.dra * rb + x.ra * drb));
-        (g, dg)
-    }
-
     /// The node at `base.alpha + u` on branch `sign` (sine and cosine by rotating the
     /// base node's by `u`, no libm call for a small `u`).
     #[inline]
     fn node_from(&self, base: &Node, u: f64, sign: f64) -> Node {
-        let (su, cu) = sin_cos_small(u);
-        let sin = base.sin * cu + base.cos * su;
-        let cos = base.cos * cu - base.sin * su;
-        let (g, dg) = self.value(&self.sample(sin, cos), sign);
+        let (sin, cos) = rotate(base, u);
+        let (g, dg) = self.sample(sin, cos).value(sign);
         Node {
             alpha: base.alpha + u,
             sin,
@@ -324,7 +392,11 @@ impl Residual {
 
     /// The root between nodes `a` and `b` (with `g` of opposite signs or zero) by
     /// safeguarded Newton iteration (Newton steps that leave the bracket or converge slowly
-    /// are replaced by bisection), in the offset `u` from `a`.
+    /// are replaced by bisection), in the offset `u` from `a`, started at the root of the
+    /// cubic Hermite interpolant of the two nodes. Stops when the step reaches the rounding
+    /// level of α, or when two successive Newton steps predict (quadratic convergence,
+    /// next error ≈ step³ / previous step²) that the next would; the last iterate is then
+    /// accepted without evaluating the residual there.
     fn refine(&self, sign: f64, a: &Node, b: &Node) -> Root {
         if a.g == 0.0 {
             return a.root(sign);
@@ -333,29 +405,15 @@ impl Residual {
             return b.root(sign);
         }
         let h = b.alpha - a.alpha;
-        // Orient so that g(lo) < 0 < g(hi).
+        // Bracket with g(lo) < 0 < g(hi).
         let (mut lo, mut hi) = if a.g < 0.0 { (0.0, h) } else { (h, 0.0) };
-        // Start from the secant point.
-        let mut x = h * (a.g.abs() / (a.g.abs() + b.g.abs()));
+        let mut x = h * hermite_root(a, b, h);
+        let mut m = self.node_from(a, x, sign);
         let mut step_old = h;
         let mut step = h;
-        let mut m = self.node_from(a, x, sign);
+        let mut previous_newton: Option<f64> = None;
         for _ in 0..MAX_REFINE_ITERATIONS {
             if m.g == 0.0 {
-                break;
-            }
-            let newton_leaves = ((x - hi) * m.dg - m.g) * ((x - lo) * m.dg - m.g) > 0.0;
-            if newton_leaves || (2.0 * m.g).abs() > (step_old * m.dg).abs() {
-                step_old = step;
-                step = 0.5 * (hi - lo);
-                x = lo + step;
-            } else {
-                step_old = step;
-                step = m.g / m.dg;
-                x -= step;
-            }
-            m = self.node_from(a, x, sign);
-            if step.abs() <= 2.0 * f64::EPSILON * m.alpha.abs().max(1.0) {
                 break;
             }
             if m.g < 0.0 {
@@ -363,6 +421,26 @@ impl Residual {
             } else {
                 hi = x;
             }
+            let newton_leaves = ((x - hi) * m.dg - m.g) * ((x - lo) * m.dg - m.g) > 0.0;
+            let newton = !(newton_leaves || (2.0 * m.g).abs() > (step_old * m.dg).abs());
+            step_old = step;
+            if newton {
+                step = m.g / m.dg;
+                x -= step;
+            } else {
+                step = 0.5 * (hi - lo);
+                x = lo + step;
+            }
+            let tolerance = 2.0 * f64::EPSILON * (a.alpha + x).abs().max(1.0);
+            let s = step.abs();
+            let converged = s <= tolerance
+                || (newton && previous_newton.is_some_and(|p| s * s * s <= tolerance * p * p));
+            if converged {
+                let (sin, cos) = rotate(a, x);
+                return Root { sin, cos, sign };
+            }
+            previous_newton = newton.then_some(s);
+            m = self.node_from(a, x, sign);
         }
         m.root(sign)
     }
@@ -431,6 +509,41 @@ impl Residual {
             self.scan(sign, m, b, depth + 1, tangent_tolerance, roots);
         }
     }
+}
+
+/// `(sin, cos)` of `base.alpha + u`, by rotating the base node's by `u`.
+#[inline]
+fn rotate(base: &Node, u: f64) -> (f64, f64) {
+    let (su, cu) = sin_cos_small(u);
+    (base.sin * cu + base.cos * su, base.cos * cu - base.sin * su)
+}
+
+/// Iterations of Newton's method on the cubic Hermite interpolant for the refinement start.
+const HERMITE_START_ITERATIONS: usize = 2;
+
+/// The root, as a fraction of the interval, of the cubic Hermite interpolant of two nodes
+/// whose residuals have opposite signs: a few Newton steps from the secant point, kept
+/// inside `[0, 1]`.
+fn hermite_root(a: &Node, b: &Node, h: f64) -> f64 {
+    let (ga, gb, m0, m1) = (a.g, b.g, a.dg * h, b.dg * h);
+    let mut t = ga / (ga - gb);
+    for _ in 0..HERMITE_START_ITERATIONS {
+        let t2 = t * t;
+        let t3 = t2 * t;
+        let value = (2.0 * t3 - 3.0 * t2 + 1.0) * ga
+            + (t3 - 2.0 * t2 + t) * m0
+            + (3.0 * t2 - 2.0 * t3) * gb
+            + (t3 - t2) * m1;
+        let slope = (6.0 * t2 - 6.0 * t) * (ga - gb)
+            + (3.0 * t2 - 4.0 * t + 1.0) * m0
+            + (3.0 * t2 - 2.0 * t) * m1;
+        let next = t - value / slope;
+        if !(next > 0.0 && next < 1.0) {
+            break;
+        }
+        t = next;
+    }
+    t
 }
 
 /// Whether the tangent lines of `f = |g|` at the ends of an interval of width `h` (`f`
@@ -542,15 +655,18 @@ fn solve_unit(
     } else {
         (s01, s02, sin[0], cos[0], sin[1], cos[1])
     };
+    let sin2_0b = sin_0b * sin_0b;
     let residual = Residual {
         radius: s0a / sin_0a,
         sin_0a,
         cos_0a,
         cos_0b,
-        sin2_0b: sin_0b * sin_0b,
+        sin2_0b,
         s2_0b: s0b * s0b,
         cos_ab: cos[2],
-        s2_ab: s12 * s12,
+        cos2_0b: cos_0b * cos_0b - sin2_0b,
+        k_ab: 2.0 * cos[2] * cos_0b,
+        k0: s0b * s0b - s12 * s12,
     };
     if !residual.radius.is_finite() {
         return out;
@@ -577,50 +693,18 @@ fn solve_unit(
     let (sin_h, cos_h) = sin_cos_small(step);
     let mut junction_pending = junction > 0.0 && junction < alpha_end;
 
-    let mut visit = |current: (f64, [Node; 2]), previous: &mut (f64, [Node; 2])| {
-        let (r0_a, r0_b) = (previous.0, current.0);
-        for k in 0..2 {
-            let (a, b) = (previous.1[k], current.1[k]);
-            let sign = if k == 0 { 1.0 } else { -1.0 };
-            let feasible = if k == 0 {
-                !plus_needs_small_r0 || r0_a.min(r0_b) < s0b
-            } else {
-                minus_branch && r0_a.max(r0_b) > s0b
-            };
-            if !feasible {
-                continue;
-            }
-            if b.g == 0.0 {
-                let _ = found.try_push(b.root(sign));
-            } else if a.g * b.g < 0.0 {
-                if search_extrema {
-                    residual.scan(sign, a, b, 0, tangent_tolerance, &mut found);
-                } else {
-                    let _ = found.try_push(residual.refine(sign, &a, &b));
-                }
-            } else if search_extrema && a.g != 0.0 && same_sign_needs_scan(&a, &b) {
-                residual.scan(sign, a, b, 0, tangent_tolerance, &mut found);
-            }
+    // Node generator: grid node k (α = k·step), preceded by the junction when it falls
+    // strictly inside the grid interval.
+    let (mut k, mut sin_k, mut cos_k) = (0usize, 0.0_f64, 1.0_f64);
+    let mut held: Option<(f64, f64, f64)> = None;
+    let mut next_node = || -> Option<(f64, f64, f64)> {
+        if let Some(node) = held.take() {
+            return Some(node);
         }
-        *previous = current;
-    };
-    let node_pair = |alpha: f64, sin: f64, cos: f64| {
-        let x = residual.sample(sin, cos);
-        let node = |sign: f64| {
-            let (g, dg) = residual.value(&x, sign);
-            Node {
-                alpha,
-                sin,
-                cos,
-                g,
-                dg,
-            }
-        };
-        (x.r0, [node(1.0), node(-1.0)])
-    };
-    let mut previous = node_pair(0.0, 0.0, 1.0);
-    let (mut sin_k, mut cos_k) = (0.0_f64, 1.0_f64);
-    for k in 1..=n {
+        if k >= n {
+            return None;
+        }
+        k += 1;
         let next_sin = sin_k * cos_h + cos_k * sin_h;
         cos_k = cos_k * cos_h - sin_k * sin_h;
         sin_k = next_sin;
@@ -634,11 +718,66 @@ fn solve_unit(
         if junction_pending && junction <= alpha {
             junction_pending = false;
             if junction < alpha {
+                held = Some((alpha, sin_k, cos_k));
                 // sin(π/2 − θ) = cos θ, cos(π/2 − θ) = sin θ.
-                visit(node_pair(junction, cos_0a, sin_0a), &mut previous);
+                return Some((junction, cos_0a, sin_0a));
             }
         }
-        visit(node_pair(alpha, sin_k, cos_k), &mut previous);
+        Some((alpha, sin_k, cos_k))
+    };
+
+    // Nodes are evaluated in chunks (structure of arrays, so that the evaluation loop
+    // vectorises), then the intervals of the chunk are searched; the last node of a chunk
+    // is the first of the next.
+    let mut c = Chunk::new();
+    (c.alpha[0], c.sin[0], c.cos[0]) = (0.0, 0.0, 1.0);
+    let mut len = 1;
+    let mut done = false;
+    while !done {
+        while len < CHUNK {
+            match next_node() {
+                Some(node) => {
+                    (c.alpha[len], c.sin[len], c.cos[len]) = node;
+                    len += 1;
+                }
+                None => {
+                    done = true;
+                    break;
+                }
+            }
+        }
+        c.evaluate(&residual, len);
+        for i in 1..len {
+            let (r0_a, r0_b) = (c.r0[i - 1], c.r0[i]);
+            for (branch, sign) in [(0, 1.0), (1, -1.0)] {
+                let feasible = if branch == 0 {
+                    !plus_needs_small_r0 || r0_a.min(r0_b) < s0b
+                } else {
+                    minus_branch && r0_a.max(r0_b) > s0b
+                };
+                if !feasible {
+                    continue;
+                }
+                let (ga, gb) = (c.g[branch][i - 1], c.g[branch][i]);
+                if gb == 0.0 {
+                    let _ = found.try_push(c.node(branch, i).root(sign));
+                } else if ga * gb < 0.0 {
+                    let (a, b) = (c.node(branch, i - 1), c.node(branch, i));
+                    if search_extrema {
+                        residual.scan(sign, a, b, 0, tangent_tolerance, &mut found);
+                    } else {
+                        let _ = found.try_push(residual.refine(sign, &a, &b));
+                    }
+                } else if search_extrema && ga != 0.0 {
+                    let (a, b) = (c.node(branch, i - 1), c.node(branch, i));
+                    if same_sign_needs_scan(&a, &b) {
+                        residual.scan(sign, a, b, 0, tangent_tolerance, &mut found);
+                    }
+                }
+            }
+        }
+        (c.alpha[0], c.sin[0], c.cos[0]) = (c.alpha[len - 1], c.sin[len - 1], c.cos[len - 1]);
+        len = 1;
     }
 
     // Ranges of the roots: all positive, duplicates removed.
