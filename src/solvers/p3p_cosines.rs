@@ -1,10 +1,9 @@
 //! P3P by the law of cosines and a one-dimensional root search (Bierre's directional
 //! triangulation).
 
-use crate::attitude::triad;
 use crate::geometry::{Pose, PoseSolutions, is_finite, try_unit};
 use arrayvec::ArrayVec;
-use nalgebra::{Rotation3, Translation3, Vector3};
+use nalgebra::{Matrix3, Rotation3, Translation3, Vector3};
 use std::f64::consts::{FRAC_PI_2, PI};
 
 /// Smallest sine of the angle between two bearings: closer to parallel (same direction),
@@ -111,8 +110,17 @@ pub fn p3p_cosines(
     let Some(unit) = unit_bearings(bearings_in_rig) else {
         return out;
     };
-    for ranges in solve_unit(&unit, points_in_world, RESIDUAL_SAMPLES, true) {
-        if let Some(pose) = pose_from_ranges(&unit, &ranges, points_in_world) {
+    let ranges = solve_unit(&unit, points_in_world, RESIDUAL_SAMPLES, true);
+    if ranges.is_empty() {
+        return out;
+    }
+    let x = points_in_world;
+    let Some(world_frame) = edge_frame(&(x[1] - x[0]), &(x[2] - x[0])) else {
+        return out;
+    };
+    let centroid_world = (x[0] + x[1] + x[2]) * (1.0 / 3.0);
+    for r in &ranges {
+        if let Some(pose) = pose_from_ranges(&unit, r, &world_frame, &centroid_world) {
             out.push(pose);
         }
     }
@@ -558,22 +566,21 @@ fn tangents_clear(fa: f64, fb: f64, dfa: f64, dfb: f64, h: f64) -> bool {
 /// Whether an interval without a sign change may hold roots and must be scanned: the
 /// same tests as [`Residual::scan`], evaluated without divisions.
 #[inline]
-fn same_sign_needs_scan(a: &Node, b: &Node) -> bool {
-    let h = b.alpha - a.alpha;
-    let s = if a.g < 0.0 { -1.0 } else { 1.0 };
-    let (dfa, dfb) = (s * a.dg, s * b.dg);
+fn same_sign_needs_scan(ga: f64, gb: f64, dga: f64, dgb: f64, h: f64) -> bool {
+    let s = if ga < 0.0 { -1.0 } else { 1.0 };
+    let (dfa, dfb) = (s * dga, s * dgb);
     if dfa < 0.0 && dfb > 0.0 {
-        !tangents_clear(s * a.g, s * b.g, dfa, dfb, h)
+        !tangents_clear(s * ga, s * gb, dfa, dfb, h)
     } else {
-        hermite_has_two_extrema(a, b, h)
+        hermite_has_two_extrema(ga, gb, dga, dgb, h)
     }
 }
 
 /// The coefficients `(m0, qa, qb)` of `H'(t) = qa t² + qb t + m0` of the cubic Hermite
 /// interpolant of two nodes on `t ∈ [0, 1]`, and `m1 = H'(1)`.
 #[inline]
-fn hermite_slope(a: &Node, b: &Node, h: f64) -> (f64, f64, f64, f64) {
-    let (m0, m1, delta) = (a.dg * h, b.dg * h, b.g - a.g);
+fn hermite_slope(ga: f64, gb: f64, dga: f64, dgb: f64, h: f64) -> (f64, f64, f64, f64) {
+    let (m0, m1, delta) = (dga * h, dgb * h, gb - ga);
     let qa = 3.0 * (m0 + m1) - 6.0 * delta;
     let qb = 6.0 * delta - 4.0 * m0 - 2.0 * m1;
     (m0, m1, qa, qb)
@@ -583,8 +590,8 @@ fn hermite_slope(a: &Node, b: &Node, h: f64) -> (f64, f64, f64, f64) {
 /// inside the interval: `m0`, `m1` of the same sign, and the vertex `t = −qb / 2qa` inside
 /// with `H'` of the other sign there (`m0 − qb²/4qa`), all without division.
 #[inline]
-fn hermite_has_two_extrema(a: &Node, b: &Node, h: f64) -> bool {
-    let (m0, m1, qa, qb) = hermite_slope(a, b, h);
+fn hermite_has_two_extrema(ga: f64, gb: f64, dga: f64, dgb: f64, h: f64) -> bool {
+    let (m0, m1, qa, qb) = hermite_slope(ga, gb, dga, dgb, h);
     m0 * m1 > 0.0
         && qa * qb < 0.0
         && (qb + 2.0 * qa) * qa > 0.0
@@ -595,10 +602,10 @@ fn hermite_has_two_extrema(a: &Node, b: &Node, h: f64) -> bool {
 /// the interval, the midpoint between them as a fraction of the interval.
 fn hermite_two_extrema(a: &Node, b: &Node) -> Option<f64> {
     let h = b.alpha - a.alpha;
-    if !hermite_has_two_extrema(a, b, h) {
+    if !hermite_has_two_extrema(a.g, b.g, a.dg, b.dg, h) {
         return None;
     }
-    let (_, _, qa, qb) = hermite_slope(a, b, h);
+    let (_, _, qa, qb) = hermite_slope(a.g, b.g, a.dg, b.dg, h);
     Some(-qb / (2.0 * qa))
 }
 
@@ -693,91 +700,85 @@ fn solve_unit(
     let (sin_h, cos_h) = sin_cos_small(step);
     let mut junction_pending = junction > 0.0 && junction < alpha_end;
 
-    // Node generator: grid node k (α = k·step), preceded by the junction when it falls
-    // strictly inside the grid interval.
+    // Nodes are generated and evaluated in chunks (structure of arrays, so that the
+    // evaluation loop vectorises), then the intervals of the chunk are searched; the last
+    // node of a chunk is the first of the next. Grid node k is at α = k·step, preceded by
+    // the junction when that falls strictly inside the grid interval.
     let (mut k, mut sin_k, mut cos_k) = (0usize, 0.0_f64, 1.0_f64);
-    let mut held: Option<(f64, f64, f64)> = None;
-    let mut next_node = || -> Option<(f64, f64, f64)> {
-        if let Some(node) = held.take() {
-            return Some(node);
-        }
-        if k >= n {
-            return None;
-        }
-        k += 1;
-        let next_sin = sin_k * cos_h + cos_k * sin_h;
-        cos_k = cos_k * cos_h - sin_k * sin_h;
-        sin_k = next_sin;
-        let alpha = if k == n {
-            // sin(π − θ) = sin θ, cos(π − θ) = −cos θ.
-            (sin_k, cos_k) = (sin_0a, -cos_0a);
-            alpha_end
-        } else {
-            k as f64 * step
-        };
-        if junction_pending && junction <= alpha {
-            junction_pending = false;
-            if junction < alpha {
-                held = Some((alpha, sin_k, cos_k));
-                // sin(π/2 − θ) = cos θ, cos(π/2 − θ) = sin θ.
-                return Some((junction, cos_0a, sin_0a));
-            }
-        }
-        Some((alpha, sin_k, cos_k))
-    };
-
-    // Nodes are evaluated in chunks (structure of arrays, so that the evaluation loop
-    // vectorises), then the intervals of the chunk are searched; the last node of a chunk
-    // is the first of the next.
     let mut c = Chunk::new();
     (c.alpha[0], c.sin[0], c.cos[0]) = (0.0, 0.0, 1.0);
-    let mut len = 1;
-    let mut done = false;
-    while !done {
-        while len < CHUNK {
-            match next_node() {
-                Some(node) => {
-                    (c.alpha[len], c.sin[len], c.cos[len]) = node;
+    loop {
+        let mut len = 1;
+        while len < CHUNK && k < n {
+            let next = k + 1;
+            let alpha = if next == n {
+                alpha_end
+            } else {
+                next as f64 * step
+            };
+            if junction_pending && junction <= alpha {
+                junction_pending = false;
+                if junction < alpha {
+                    // sin(π/2 − θ) = cos θ, cos(π/2 − θ) = sin θ.
+                    (c.alpha[len], c.sin[len], c.cos[len]) = (junction, cos_0a, sin_0a);
                     len += 1;
-                }
-                None => {
-                    done = true;
-                    break;
-                }
-            }
-        }
-        c.evaluate(&residual, len);
-        for i in 1..len {
-            let (r0_a, r0_b) = (c.r0[i - 1], c.r0[i]);
-            for (branch, sign) in [(0, 1.0), (1, -1.0)] {
-                let feasible = if branch == 0 {
-                    !plus_needs_small_r0 || r0_a.min(r0_b) < s0b
-                } else {
-                    minus_branch && r0_a.max(r0_b) > s0b
-                };
-                if !feasible {
                     continue;
                 }
+            }
+            k = next;
+            if k == n {
+                // sin(π − θ) = sin θ, cos(π − θ) = −cos θ.
+                (sin_k, cos_k) = (sin_0a, -cos_0a);
+            } else {
+                (sin_k, cos_k) = (
+                    sin_k * cos_h + cos_k * sin_h,
+                    cos_k * cos_h - sin_k * sin_h,
+                );
+            }
+            (c.alpha[len], c.sin[len], c.cos[len]) = (alpha, sin_k, cos_k);
+            len += 1;
+        }
+        c.evaluate(&residual, len);
+        let mut search = |branch: usize, i: usize| {
+            let sign = if branch == 0 { 1.0 } else { -1.0 };
+            let (a, b) = (c.node(branch, i - 1), c.node(branch, i));
+            if b.g == 0.0 {
+                let _ = found.try_push(b.root(sign));
+            } else if a.g * b.g < 0.0 {
+                if search_extrema {
+                    residual.scan(sign, a, b, 0, tangent_tolerance, &mut found);
+                } else {
+                    let _ = found.try_push(residual.refine(sign, &a, &b));
+                }
+            } else if search_extrema && a.g != 0.0 {
+                residual.scan(sign, a, b, 0, tangent_tolerance, &mut found);
+            }
+        };
+        for i in 1..len.min(CHUNK) {
+            let (r0_a, r0_b) = (c.r0[i - 1], c.r0[i]);
+            let h = c.alpha[i] - c.alpha[i - 1];
+            let feasible = [
+                !plus_needs_small_r0 || r0_a.min(r0_b) < s0b,
+                minus_branch && r0_a.max(r0_b) > s0b,
+            ];
+            for branch in 0..2 {
                 let (ga, gb) = (c.g[branch][i - 1], c.g[branch][i]);
-                if gb == 0.0 {
-                    let _ = found.try_push(c.node(branch, i).root(sign));
-                } else if ga * gb < 0.0 {
-                    let (a, b) = (c.node(branch, i - 1), c.node(branch, i));
-                    if search_extrema {
-                        residual.scan(sign, a, b, 0, tangent_tolerance, &mut found);
-                    } else {
-                        let _ = found.try_push(residual.refine(sign, &a, &b));
-                    }
-                } else if search_extrema && ga != 0.0 {
-                    let (a, b) = (c.node(branch, i - 1), c.node(branch, i));
-                    if same_sign_needs_scan(&a, &b) {
-                        residual.scan(sign, a, b, 0, tangent_tolerance, &mut found);
-                    }
+                let (dga, dgb) = (c.dg[branch][i - 1], c.dg[branch][i]);
+                if feasible[branch]
+                    && (gb == 0.0
+                        || ga * gb < 0.0
+                        || (search_extrema
+                            && ga != 0.0
+                            && same_sign_needs_scan(ga, gb, dga, dgb, h)))
+                {
+                    search(branch, i);
                 }
             }
         }
+        if k >= n {
+            break;
+        }
         (c.alpha[0], c.sin[0], c.cos[0]) = (c.alpha[len - 1], c.sin[len - 1], c.cos[len - 1]);
-        len = 1;
     }
 
     // Ranges of the roots: all positive, duplicates removed.
@@ -801,25 +802,46 @@ fn solve_unit(
     out
 }
 
-/// The pose mapping the rig-frame points `rᵢ dᵢ` onto the world points: rotation by
-/// [`triad`] on the two triangle edges from the longest-edge vertex pair, translation by
-/// the centroids.
+/// Smallest norm of the cross product of two unit triangle edges (the sine of the triangle
+/// angle between them) for which the orientation of the triangle is defined.
+const MIN_EDGE_SINE: f64 = 1e-10;
+
+/// The right-handed orthonormal frame `[t₁ | t₂ | t₁ × t₂]` of a triangle's edges `e₁`,
+/// `e₂` from its first vertex (`t₁ ∥ e₁`, `t₂ ∥ e₁ × e₂`), or `None` when degenerate.
+fn edge_frame(e1: &Vector3<f64>, e2: &Vector3<f64>) -> Option<Matrix3<f64>> {
+    let n1 = e1.norm();
+    let c = e1.cross(e2);
+    let nc = c.norm();
+    // |e₁ × e₂| ≤ sine threshold × |e₁| |e₂| (also rejects zero, NaN and infinite norms).
+    if !(n1 > 0.0 && nc > MIN_EDGE_SINE * n1 * e2.norm() && nc.is_finite()) {
+        return None;
+    }
+    let t1 = e1 / n1;
+    let t2 = c / nc;
+    Some(Matrix3::from_columns(&[t1, t2, t1.cross(&t2)]))
+}
+
+/// The pose mapping the rig-frame points `rᵢ dᵢ` onto the world points, given the world
+/// triangle's [`edge_frame`]: rotation by TRIAD on the two triangle edges from point 0
+/// (the rig triangle's edge frame onto the world's), translation by the centroids.
 fn pose_from_ranges(
     unit_bearings: &[Vector3<f64>; 3],
     ranges: &[f64; 3],
-    points_in_world: &[Vector3<f64>; 3],
+    world_frame: &Matrix3<f64>,
+    centroid_world: &Vector3<f64>,
 ) -> Option<Pose> {
     let p: [Vector3<f64>; 3] = std::array::from_fn(|i| unit_bearings[i] * ranges[i]);
-    let x = points_in_world;
-    let rotation: Rotation3<f64> = triad(
-        [&(p[1] - p[0]), &(p[2] - p[0])],
-        [&(x[1] - x[0]), &(x[2] - x[0])],
-    )?;
-    let centroid_rig = (p[0] + p[1] + p[2]) / 3.0;
-    let centroid_world = (x[0] + x[1] + x[2]) / 3.0;
+    let rig_frame = edge_frame(&(p[1] - p[0]), &(p[2] - p[0]))?;
+    let rotation = world_frame * rig_frame.transpose();
+    let centroid_rig = (p[0] + p[1] + p[2]) * (1.0 / 3.0);
     let t = centroid_world - rotation * centroid_rig;
-    let ok = is_finite(&t) && rotation.matrix().iter().all(|v| v.is_finite());
-    ok.then(|| Pose::from_parts(Translation3::from(t), rotation))
+    let ok = is_finite(&t) && rotation.iter().all(|v| v.is_finite());
+    ok.then(|| {
+        Pose::from_parts(
+            Translation3::from(t),
+            Rotation3::from_matrix_unchecked(rotation),
+        )
+    })
 }
 
 #[cfg(test)]
