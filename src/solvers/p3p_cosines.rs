@@ -58,8 +58,8 @@ pub type RangeSolutions = ArrayVec<[f64; 3], 4>;
 /// one parameter (both quadratic branches, parameterised by an angle of the triangle so that
 /// the branches join smoothly), and the third equation's residual is searched for every
 /// root; see [`p3p_cosines_ranges`] and `docs/solvers.md`. The rig-frame points `rᵢdᵢ` and
-/// the world points form congruent triangles; the rotation is the [`triad`] of two triangle
-/// edges and the translation matches the centroids (a closed-form three-point absolute
+/// the world points form congruent triangles; the rotation is the TRIAD (as in
+/// [`crate::attitude::triad`]) of two triangle edges and the translation matches the centroids (a closed-form three-point absolute
 /// orientation, preferred to sphere trilateration, which loses half the digits when the rig
 /// is near the plane of the landmarks).
 ///
@@ -145,7 +145,11 @@ pub fn p3p_cosines(
 /// is real on the whole sweep because `r₀ ≤ R₀ₐ ≤ R₀b`. On each of the two `r_b` branches
 /// the residual `g(α) = rₐ² + r_b² − 2 rₐ r_b cos θₐb − sₐb²` is sampled at
 /// [`RESIDUAL_SAMPLES`] uniform nodes (plus the branch junction) with its analytic
-/// derivative. Every sign change is refined by safeguarded Newton iteration; an interval
+/// derivative; one evaluation serves both branches (`g± = A ± B √(…)`), and the node sines
+/// and cosines come from a rotation recurrence (no libm call in the sampling). Intervals
+/// where `r_b` cannot be positive on a branch are skipped (`r₀` is monotonic between
+/// nodes). Every sign change is refined by safeguarded Newton iteration, started at the root
+/// of the cubic Hermite interpolant of the bracket; an interval
 /// whose end slopes show `|g|` falling then rising is searched for a near-double root (the
 /// tangent lines at its ends bound a convex `|g|` from below, and the interval is split at
 /// their intersection until the bound clears or a sign change appears); an interval whose
@@ -207,13 +211,11 @@ fn sin_cos_small(u: f64) -> (f64, f64) {
     let sin = u
         * (1.0
             - x * (F[1]
-                - x * (F[3]
-                    - x * (F[5] - x * (F[7] - x * (F[9] - x * (F[11] - x * F[13])))))));
+                - x * (F[3] - x * (F[5] - x * (F[7] - x * (F[9] - x * (F[11] - x * F[13])))))));
     let cos = 1.0
         - x * (F[0]
             - x * (F[2]
-                - x * (F[4]
-                    - x * (F[6] - x * (F[8] - x * (F[10] - x * (F[12] - x * F[14])))))));
+                - x * (F[4] - x * (F[6] - x * (F[8] - x * (F[10] - x * (F[12] - x * F[14])))))));
     (sin, cos)
 }
 
@@ -362,8 +364,7 @@ impl Residual {
             0.0
         };
         let a = ra * ra + self.cos2_0b * (r0 * r0) - self.k_ab * (ra * r0) + self.k0;
-        let da = 2.0 * (ra * dra + self.cos2_0b * (r0 * dr0))
-            - self.k_ab * (dra * r0 + ra * dr0);
+        let da = 2.0 * (ra * dra + self.cos2_0b * (r0 * dr0)) - self.k_ab * (dra * r0 + ra * dr0);
         let b = 2.0 * (r0 * self.cos_0b - self.cos_ab * ra);
         let db = 2.0 * (dr0 * self.cos_0b - self.cos_ab * dra);
         Sample {
@@ -730,10 +731,7 @@ fn solve_unit(
                 // sin(π − θ) = sin θ, cos(π − θ) = −cos θ.
                 (sin_k, cos_k) = (sin_0a, -cos_0a);
             } else {
-                (sin_k, cos_k) = (
-                    sin_k * cos_h + cos_k * sin_h,
-                    cos_k * cos_h - sin_k * sin_h,
-                );
+                (sin_k, cos_k) = (sin_k * cos_h + cos_k * sin_h, cos_k * cos_h - sin_k * sin_h);
             }
             (c.alpha[len], c.sin[len], c.cos[len]) = (alpha, sin_k, cos_k);
             len += 1;
@@ -761,10 +759,10 @@ fn solve_unit(
                 !plus_needs_small_r0 || r0_a.min(r0_b) < s0b,
                 minus_branch && r0_a.max(r0_b) > s0b,
             ];
-            for branch in 0..2 {
+            for (branch, feasible) in feasible.into_iter().enumerate() {
                 let (ga, gb) = (c.g[branch][i - 1], c.g[branch][i]);
                 let (dga, dgb) = (c.dg[branch][i - 1], c.dg[branch][i]);
-                if feasible[branch]
+                if feasible
                     && (gb == 0.0
                         || ga * gb < 0.0
                         || (search_extrema
@@ -858,6 +856,78 @@ mod tests {
         sol.iter()
             .map(|r| (0..3).map(|k| (r[k] - truth[k]).abs()).fold(0.0, f64::max))
             .fold(f64::INFINITY, f64::min)
+    }
+
+    #[test]
+    fn sin_cos_small_matches_libm() {
+        for k in -1000..=1000 {
+            let u = k as f64 * 1.2 * SMALL_ANGLE / 1000.0;
+            let (s, c) = sin_cos_small(u);
+            assert!((s - u.sin()).abs() <= 2.0 * f64::EPSILON, "sin {u}");
+            assert!((c - u.cos()).abs() <= 2.0 * f64::EPSILON, "cos {u}");
+        }
+    }
+
+    /// The division-free interval tests agree with their direct forms (away from ties at
+    /// the rounding level).
+    #[test]
+    fn division_free_tests_match_direct_forms() {
+        use rand::RngExt;
+        let mut r = rng(5);
+        let (mut hermite_hits, mut tangent_hits) = (0, 0);
+        for _ in 0..200_000 {
+            let v: [f64; 5] = std::array::from_fn(|_| r.random_range(-1.0..1.0));
+            let (ga, gb, dga, dgb, h) = (v[0], v[1], v[2], v[3], 0.05 + 0.5 * v[4].abs());
+            // Hermite: two interior critical points of H'(t) = qa t² + qb t + m0.
+            let (m0, m1, qa, qb) = hermite_slope(ga, gb, dga, dgb, h);
+            let t = -qb / (2.0 * qa);
+            let at_vertex = m0 - qb * qb / (4.0 * qa);
+            let direct = m0 * m1 > 0.0 && t > 0.0 && t < 1.0 && at_vertex * m0 < 0.0;
+            let margin =
+                (t.abs() - 1.0).abs().min(t.abs()) > 1e-9 && at_vertex.abs() > 1e-9 * m0.abs();
+            if margin {
+                assert_eq!(
+                    hermite_has_two_extrema(ga, gb, dga, dgb, h),
+                    direct,
+                    "{v:?}"
+                );
+                hermite_hits += usize::from(direct);
+            }
+            // Tangent lines of f = |g| falling then rising.
+            let (fa, fb, dfa, dfb) = (ga.abs(), gb.abs(), -dga.abs(), dgb.abs());
+            let t = (fb - fa - dfb * h) / (dfa - dfb);
+            let bound = fa + dfa * t;
+            if bound.abs() > 1e-9 {
+                assert_eq!(tangents_clear(fa, fb, dfa, dfb, h), bound > 0.0, "{v:?}");
+                tangent_hits += usize::from(bound <= 0.0);
+            }
+        }
+        // Both outcomes occur.
+        assert!(
+            hermite_hits > 1000 && tangent_hits > 1000,
+            "{hermite_hits} {tangent_hits}"
+        );
+    }
+
+    /// The Hermite start of the refinement lies in the bracket and, for a smooth residual
+    /// sampled finely, is far closer to the root than the secant point.
+    #[test]
+    fn hermite_start_beats_the_secant_point() {
+        // g(α) = sin α − 0.3 on [0.2, 0.5] (root at asin 0.3 ≈ 0.3047).
+        let node = |alpha: f64| Node {
+            alpha,
+            sin: alpha.sin(),
+            cos: alpha.cos(),
+            g: alpha.sin() - 0.3,
+            dg: alpha.cos(),
+        };
+        let (a, b) = (node(0.2), node(0.5));
+        let h = b.alpha - a.alpha;
+        let truth = 0.3_f64.asin();
+        let start = a.alpha + h * hermite_root(&a, &b, h);
+        let secant = a.alpha + h * a.g / (a.g - b.g);
+        assert!((start - truth).abs() < 1e-4, "{start} vs {truth}");
+        assert!((start - truth).abs() < 0.05 * (secant - truth).abs());
     }
 
     /// Miss-rate measurement against a 4096-sample reference on 10⁵ problems, for several
