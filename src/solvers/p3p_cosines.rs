@@ -1,7 +1,7 @@
 //! P3P by the law of cosines and a one-dimensional root search (Bierre's directional
 //! triangulation).
 
-use crate::geometry::{Pose, PoseSolutions, is_finite, try_unit};
+use crate::geometry::{MIN_DIRECTION_NORM, Pose, PoseSolutions, is_finite};
 use arrayvec::ArrayVec;
 use nalgebra::{Matrix3, Rotation3, Translation3, Vector3};
 use std::f64::consts::{FRAC_PI_2, PI};
@@ -171,10 +171,19 @@ pub fn p3p_cosines_ranges(
 
 /// Unit bearings, or `None` if one is zero or not finite.
 fn unit_bearings(bearings: &[Vector3<f64>; 3]) -> Option<[Vector3<f64>; 3]> {
+    // As `geometry::try_unit`, component by component.
+    let unit = |v: &Vector3<f64>| {
+        let n = (v.x * v.x + v.y * v.y + v.z * v.z).sqrt();
+        if !(n.is_finite() && n > MIN_DIRECTION_NORM) {
+            return None;
+        }
+        let u = Vector3::new(v.x / n, v.y / n, v.z / n);
+        (u.x.is_finite() && u.y.is_finite() && u.z.is_finite()).then_some(u)
+    };
     Some([
-        try_unit(&bearings[0])?,
-        try_unit(&bearings[1])?,
-        try_unit(&bearings[2])?,
+        unit(&bearings[0])?,
+        unit(&bearings[1])?,
+        unit(&bearings[2])?,
     ])
 }
 
@@ -752,24 +761,31 @@ fn solve_unit(
                 residual.scan(sign, a, b, 0, tangent_tolerance, &mut found);
             }
         };
-        for i in 1..len.min(CHUNK) {
-            let (r0_a, r0_b) = (c.r0[i - 1], c.r0[i]);
-            let h = c.alpha[i] - c.alpha[i - 1];
-            let feasible = [
-                !plus_needs_small_r0 || r0_a.min(r0_b) < s0b,
-                minus_branch && r0_a.max(r0_b) > s0b,
-            ];
-            for (branch, feasible) in feasible.into_iter().enumerate() {
-                let (ga, gb) = (c.g[branch][i - 1], c.g[branch][i]);
-                let (dga, dgb) = (c.dg[branch][i - 1], c.dg[branch][i]);
+        let len = len.min(CHUNK);
+        for (branch, feasible) in [(0, true), (1, minus_branch)] {
+            if !feasible {
+                continue;
+            }
+            let windows = c.g[branch][..len]
+                .windows(2)
+                .zip(c.dg[branch][..len].windows(2))
+                .zip(c.alpha[..len].windows(2))
+                .zip(c.r0[..len].windows(2));
+            for (i, (((g, dg), alpha), r0)) in windows.enumerate() {
+                let feasible = if branch == 0 {
+                    !plus_needs_small_r0 || r0[0].min(r0[1]) < s0b
+                } else {
+                    r0[0].max(r0[1]) > s0b
+                };
+                let (ga, gb) = (g[0], g[1]);
                 if feasible
                     && (gb == 0.0
                         || ga * gb < 0.0
                         || (search_extrema
                             && ga != 0.0
-                            && same_sign_needs_scan(ga, gb, dga, dgb, h)))
+                            && same_sign_needs_scan(ga, gb, dg[0], dg[1], alpha[1] - alpha[0])))
                 {
-                    search(branch, i);
+                    search(branch, i + 1);
                 }
             }
         }
@@ -781,7 +797,7 @@ fn solve_unit(
 
     // Ranges of the roots: all positive, duplicates removed.
     let mut roots: ArrayVec<[f64; 3], 8> = ArrayVec::new();
-    for root in found {
+    for root in &found {
         let p = residual.sample(root.sin, root.cos);
         let r = [p.r0, p.ra, residual.rb(&p, root.sign)];
         if r.iter().all(|v| *v > 0.0 && v.is_finite())
