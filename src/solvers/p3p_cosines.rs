@@ -567,22 +567,31 @@ fn hermite_root(a: &Node, b: &Node, h: f64) -> f64 {
 /// Whether the tangent lines of `f = |g|` at the ends of an interval of width `h` (`f`
 /// falling at the start, `dfa < 0`, rising at the end, `dfb > 0`) meet above zero: then a
 /// convex `f` has no root inside. Division-free form of `fa + dfa t > 0` with
-/// `t = (fb − fa − dfb h) / (dfa − dfb)` (the denominator is negative).
+/// `t = (fb − fa − dfb h) / (dfa − dfb)` (the denominator is negative). The expression is
+/// unchanged when `f`, `df` are replaced by `g`, `dg` (`f = ±g`), so it also takes `g`.
 #[inline]
 fn tangents_clear(fa: f64, fb: f64, dfa: f64, dfb: f64, h: f64) -> bool {
     dfa * fb - fa * dfb - dfa * dfb * h < 0.0
 }
 
-/// Whether an interval without a sign change may hold roots and must be scanned: the
-/// same tests as [`Residual::scan`], evaluated without divisions.
+/// Whether an interval without a sign change (`ga ≠ 0`) may hold roots and must be scanned:
+/// the same tests as [`Residual::scan`], evaluated without divisions or sign flips. With
+/// `s = sign(ga)`, `f = s·g`: the valley `s·dga < 0 < s·dgb` needs end slopes of opposite
+/// signs (`dga·dgb < 0`) and is `ga·dga < 0`; the tangent-line bound
+/// `dfa·fb − fa·dfb − dfa·dfb·h` equals `dga·gb − ga·dgb − dga·dgb·h` (`s² = 1`); and the
+/// Hermite S-shape needs end slopes of the same sign (`dga·dgb > 0`).
 #[inline]
 fn same_sign_needs_scan(ga: f64, gb: f64, dga: f64, dgb: f64, h: f64) -> bool {
-    let s = if ga < 0.0 { -1.0 } else { 1.0 };
-    let (dfa, dfb) = (s * dga, s * dgb);
-    if dfa < 0.0 && dfb > 0.0 {
-        !tangents_clear(s * ga, s * gb, dfa, dfb, h)
+    let p = dga * dgb;
+    if p < 0.0 {
+        ga * dga < 0.0 && !tangents_clear(ga, gb, dga, dgb, h)
     } else {
-        hermite_has_two_extrema(ga, gb, dga, dgb, h)
+        // m0·m1 = p·h² > 0: the rest of `hermite_has_two_extrema`.
+        let (m0, _, qa, qb) = hermite_slope(ga, gb, dga, dgb, h);
+        p > 0.0
+            && qa * qb < 0.0
+            && (qb + 2.0 * qa) * qa > 0.0
+            && (4.0 * qa * m0 - qb * qb) * m0 * qa < 0.0
     }
 }
 
@@ -923,6 +932,45 @@ mod tests {
             hermite_hits > 1000 && tangent_hits > 1000,
             "{hermite_hits} {tangent_hits}"
         );
+        // The combined same-sign filter against the direct form of the tests of `scan`.
+        let mut needed = 0;
+        for _ in 0..200_000 {
+            let v: [f64; 5] = std::array::from_fn(|_| r.random_range(-1.0..1.0));
+            let (ga, dga, dgb, h) = (v[0], v[2], v[3], 0.05 + 0.5 * v[4].abs());
+            let gb = ga.signum() * v[1].abs(); // same sign as ga
+            let s = ga.signum();
+            let (fa, fb, dfa, dfb) = (s * ga, s * gb, s * dga, s * dgb);
+            let (direct, near_tie) = if dfa < 0.0 && dfb > 0.0 {
+                let t = (fb - fa - dfb * h) / (dfa - dfb);
+                let bound = fa + dfa * t;
+                (bound <= 0.0, bound.abs() < 1e-9)
+            } else {
+                let a = Node {
+                    alpha: 0.0,
+                    sin: 0.0,
+                    cos: 1.0,
+                    g: ga,
+                    dg: dga,
+                };
+                let b = Node {
+                    alpha: h,
+                    sin: h.sin(),
+                    cos: h.cos(),
+                    g: gb,
+                    dg: dgb,
+                };
+                let (m0, _, qa, qb) = hermite_slope(ga, gb, dga, dgb, h);
+                let t = -qb / (2.0 * qa);
+                let at_vertex = m0 - qb * qb / (4.0 * qa);
+                let tie = t.abs().min((t - 1.0).abs()) < 1e-9 || at_vertex.abs() < 1e-9;
+                (hermite_two_extrema(&a, &b).is_some(), tie)
+            };
+            if !near_tie {
+                assert_eq!(same_sign_needs_scan(ga, gb, dga, dgb, h), direct, "{v:?}");
+                needed += usize::from(direct);
+            }
+        }
+        assert!(needed > 1000, "{needed}");
     }
 
     /// The Hermite start of the refinement lies in the bracket and, for a smooth residual
