@@ -227,21 +227,34 @@ pub fn p3p(
     points_in_world: &[Vector3<f64>; 3],
 ) -> PoseSolutions {
     let mut solutions = PoseSolutions::new();
+    solve_into(bearings_in_rig, points_in_world, &mut solutions);
+    solutions
+}
 
+/// The body of [`p3p`], writing into the caller's list (so that the list is built in place
+/// rather than copied out of every early return).
+#[inline(always)]
+fn solve_into(
+    bearings_in_rig: &[Vector3<f64>; 3],
+    points_in_world: &[Vector3<f64>; 3],
+    solutions: &mut PoseSolutions,
+) {
     // --- Input checks and normalisation -------------------------------------------------
     let (Some(y1), Some(y2), Some(y3)) = (
         unit(&bearings_in_rig[0]),
         unit(&bearings_in_rig[1]),
         unit(&bearings_in_rig[2]),
     ) else {
-        return solutions;
+        return;
     };
+    // Squared sines of the angles between the bearings, from cross products (accurate for
+    // small angles, where 1 − b² is not); they are also the sᵢⱼ of the cubic below.
+    let s12 = y1.cross(&y2).norm_squared();
+    let s13 = y1.cross(&y3).norm_squared();
+    let s23 = y2.cross(&y3).norm_squared();
     let min_sin2 = MIN_BEARING_SINE * MIN_BEARING_SINE;
-    if !(y1.cross(&y2).norm_squared() > min_sin2
-        && y1.cross(&y3).norm_squared() > min_sin2
-        && y2.cross(&y3).norm_squared() > min_sin2)
-    {
-        return solutions;
+    if !(s12 > min_sin2 && s13 > min_sin2 && s23 > min_sin2) {
+        return;
     }
     let [x1, x2, x3] = points_in_world;
     let d12 = x1 - x2;
@@ -256,13 +269,14 @@ pub fn p3p(
         && a_max.is_finite()
         && nn > MIN_TRIANGLE_SHAPE * MIN_TRIANGLE_SHAPE * a_max * a_max)
     {
-        return solutions;
+        return;
     }
     let inv_a = 1.0 / a_max;
     let (a12, a13, a23) = (a12r * inv_a, a13r * inv_a, a23r * inv_a);
     let (b12, b13, b23) = (y1.dot(&y2), y1.dot(&y3), y2.dot(&y3));
 
     // --- The pencil of conics and one degenerate member -----------------------------------
+    // D1 = a23 M12 − a12 M23 and D2 = a23 M13 − a13 M23 (see the module documentation).
     let d1 = Sym3 {
         xx: a23,
         xy: -a23 * b12,
@@ -279,85 +293,88 @@ pub fn p3p(
         yz: a13 * b23,
         zz: a23 - a13,
     };
-    let adj1 = d1.adj();
-    let adj2 = d2.adj();
-    // det(D1 + γ D2) = c3 γ³ + c2 γ² + c1 γ + c0.
-    let c3 = d2.det_with(&adj2);
-    let c2 = d1.inner(&adj2);
-    let c1 = adj1.inner(&d2);
-    let c0 = d1.det_with(&adj1);
+    // det(D1 + γ D2) = −a23 (p3 γ³ − p2 γ² + p1 γ − p0), expanded in closed form with
+    // sᵢⱼ = 1 − bᵢⱼ² (Persson & Nordberg's coefficients).
+    let blob = b12 * b13 * b23 - 1.0;
+    let p3 = a13 * (a23 * s13 - a13 * s23);
+    let p2 = 2.0 * blob * a23 * a13 + a13 * (2.0 * a12 + a13) * s23 + a23 * (a23 - a12) * s13;
+    let p1 = a23 * (a13 - a23) * s12 - a12 * a12 * s23 - 2.0 * a12 * (blob * a23 + a13 * s23);
+    let p0 = a12 * (a12 * s23 - a23 * s12);
     let (d0, restrict) =
-        if c3.abs() <= CUBIC_LEADING_TOL * (c0.abs() + c1.abs() + c2.abs()) || c3 == 0.0 {
+        if p3.abs() <= CUBIC_LEADING_TOL * (p0.abs() + p1.abs() + p2.abs()) || p3 == 0.0 {
             // Root at infinity: D2 is (numerically) degenerate itself.
             (d2, d1)
         } else {
-            let inv = 1.0 / c3;
-            let gamma = outer_real_root(c2 * inv, c1 * inv, c0 * inv);
+            let inv = 1.0 / p3;
+            let gamma = outer_real_root(-p2 * inv, p1 * inv, -p0 * inv);
             if !gamma.is_finite() {
-                return solutions;
+                return;
             }
-            // On a line of D0, D1 = −γ D2: restrict the better-scaled one.
-            (
-                d1.add_scaled(gamma, &d2),
-                if gamma.abs() >= 1.0 { d1 } else { d2 },
-            )
+            // D0 = D1 + γ D2; on a line of D0, D1 = −γ D2: restrict the better-scaled one.
+            let d0 = Sym3 {
+                xx: a23 + gamma * a23,
+                xy: d1.xy,
+                xz: gamma * d2.xz,
+                yy: d1.yy - gamma * a13,
+                yz: d1.yz + gamma * d2.yz,
+                zz: gamma * d2.zz - a12,
+            };
+            (d0, if gamma.abs() >= 1.0 { d1 } else { d2 })
         };
 
-    // --- Eigen-decomposition of the rank-2 D0 -----------------------------------------------
-    // Characteristic polynomial σ(σ² − tσ + m) with t the trace and m the sum of the
-    // principal 2×2 minors (= σ₁σ₂).
-    let t = d0.xx + d0.yy + d0.zz;
+    // --- Split the degenerate conic D0 into its two lines ----------------------------------
+    // For D0 = ½(l mᵀ + m lᵀ) (l, m the lines), adj D0 = −p pᵀ with p = ½ l × m their
+    // intersection, and D0 + [p]ₓ = l mᵀ (for one sign of p): any non-zero row of it is m,
+    // any non-zero column l. adj D0 = σ₁σ₂ e₃e₃ᵀ, so its trace σ₁σ₂ must be ≤ 0.
     let adj0 = d0.adj();
-    let scale2 = d0.inner(&d0);
-    let mut m = adj0.xx + adj0.yy + adj0.zz;
-    if m > DISCRIMINANT_TOL * scale2 {
+    let m = adj0.xx + adj0.yy + adj0.zz;
+    if m > DISCRIMINANT_TOL * d0.inner(&d0) {
         // A complex-conjugate line pair: no real line through a solution.
-        return solutions;
+        return;
     }
-    m = m.min(0.0);
-    let sigma1 = 0.5 * t + (0.25 * t * t - m).sqrt().copysign(t);
-    if !positive(sigma1.abs()) {
-        return solutions;
-    }
-    let sigma2 = m / sigma1;
-    // Spectral projector of σ₁: P = σ₁e₁e₁ᵀ = (D0² − σ₂D0)/(σ₁ − σ₂); Q = D0 − P = σ₂e₂e₂ᵀ.
-    let gap = sigma1 - sigma2;
-    let d0sq = Sym3 {
-        xx: d0.col(0).norm_squared(),
-        xy: d0.col(0).dot(&d0.col(1)),
-        xz: d0.col(0).dot(&d0.col(2)),
-        yy: d0.col(1).norm_squared(),
-        yz: d0.col(1).dot(&d0.col(2)),
-        zz: d0.col(2).norm_squared(),
-    };
-    let inv_gap = 1.0 / gap;
-    let p = d0sq.add_scaled(-sigma2, &d0);
-    let p = Sym3 {
-        xx: p.xx * inv_gap,
-        xy: p.xy * inv_gap,
-        xz: p.xz * inv_gap,
-        yy: p.yy * inv_gap,
-        yz: p.yz * inv_gap,
-        zz: p.zz * inv_gap,
-    };
-    let q = d0.add_scaled(-1.0, &p);
-    let kp = argmax_abs(&p.diag());
-    let pkk = p.diag()[kp].abs();
-    if !positive(pkk) {
-        return solutions;
-    }
-    // g = √|σ₁| e₁ and h = √|σ₂| e₂ (up to sign).
-    let g = p.col(kp) * (1.0 / pkk.sqrt());
-    let kq = argmax_abs(&q.diag());
-    let qkk = q.diag()[kq].abs();
-    let h = if qkk > 0.0 {
-        q.col(kq) * (1.0 / qkk.sqrt())
+    let (nxx, nyy, nzz) = (-adj0.xx, -adj0.yy, -adj0.zz);
+    let (pkk, pcol) = if nxx >= nyy && nxx >= nzz {
+        (nxx, Vector3::new(adj0.xx, adj0.xy, adj0.xz))
+    } else if nyy >= nzz {
+        (nyy, Vector3::new(adj0.xy, adj0.yy, adj0.yz))
     } else {
-        Vector3::zeros()
+        (nzz, Vector3::new(adj0.xz, adj0.yz, adj0.zz))
     };
-    if !(crate::geometry::is_finite(&g) && crate::geometry::is_finite(&h)) {
-        return solutions;
+    // pkk ≤ 0 (a slightly positive m was clamped): a double line, D0 = l lᵀ.
+    let double_line = !positive(pkk);
+    let p = if double_line {
+        Vector3::zeros()
+    } else {
+        pcol * (1.0 / pkk.sqrt())
+    };
+    let c = [
+        d0.xx,
+        d0.xy - p.z,
+        d0.xz + p.y,
+        d0.xy + p.z,
+        d0.yy,
+        d0.yz - p.x,
+        d0.xz - p.y,
+        d0.yz + p.x,
+        d0.zz,
+    ];
+    let mut best = 0;
+    let mut best_abs = c[0].abs();
+    for (k, e) in c.iter().enumerate().skip(1) {
+        if e.abs() > best_abs {
+            best_abs = e.abs();
+            best = k;
+        }
     }
+    // Also rejects NaN (D0 = 0 would mean a vanishing pencil).
+    if !(positive(best_abs) && best_abs.is_finite() && crate::geometry::is_finite(&p)) {
+        return;
+    }
+    let (bi, bj) = (best / 3, best % 3);
+    let lines = [
+        Vector3::new(c[bi * 3], c[bi * 3 + 1], c[bi * 3 + 2]),
+        Vector3::new(c[bj], c[bj + 3], c[bj + 6]),
+    ];
 
     // --- World-side orthonormal frame of the triangle: (edge 12, in-plane, normal) ----------
     let u1 = d12 * (1.0 / a12r.sqrt());
@@ -368,19 +385,11 @@ pub fn p3p(
         a: [a12, a13, a23],
         b: [b12, b13, b23],
     };
-    // The longest side (normalised length 1) fixes the scale.
-    let (si, sj, sb) = if a12 >= a13 && a12 >= a23 {
-        (0, 1, b12)
-    } else if a13 >= a23 {
-        (0, 2, b13)
-    } else {
-        (1, 2, b23)
-    };
+    let a_sum = a12 + a13 + a23;
     let scale = a_max.sqrt();
 
-    let n_lines = if h == Vector3::zeros() { 1 } else { 2 };
-    for line in 0..n_lines {
-        let u = if line == 0 { g + h } else { g - h };
+    let n_lines = if double_line { 1 } else { 2 };
+    for u in &lines[..n_lines] {
         // The plane u·Λ = 0 meets the open positive octant only if u has entries of both
         // signs: skip lines that cannot carry positive ranges.
         let (lo, hi) = (u.x.min(u.y).min(u.z), u.x.max(u.y).max(u.z));
@@ -389,7 +398,7 @@ pub fn p3p(
         }
         // Two independent vectors spanning the plane u·Λ = 0 (u × eₖ for the two axes k
         // other than the largest component of u).
-        let (va, vb) = match argmax_abs(&u) {
+        let (va, vb) = match argmax_abs(u) {
             0 => (Vector3::new(-u.z, 0.0, u.x), Vector3::new(u.y, -u.x, 0.0)),
             1 => (Vector3::new(0.0, u.z, -u.y), Vector3::new(u.y, -u.x, 0.0)),
             _ => (Vector3::new(0.0, u.z, -u.y), Vector3::new(-u.z, 0.0, u.x)),
@@ -419,12 +428,14 @@ pub fn p3p(
             if !(lam.x > 0.0 && lam.y > 0.0 && lam.z > 0.0) {
                 continue;
             }
-            let (li, lj) = (lam[si], lam[sj]);
-            let side2 = li * li + lj * lj - 2.0 * sb * li * lj;
-            if !positive(side2) {
+            // Fix the scale by the sum of the three distance equations (well conditioned:
+            // every term is non-negative).
+            let q_sum = 2.0 * (lam.x * lam.x + lam.y * lam.y + lam.z * lam.z)
+                - 2.0 * (b12 * lam.x * lam.y + b13 * lam.x * lam.z + b23 * lam.y * lam.z);
+            if !positive(q_sum) {
                 continue;
             }
-            lam *= 1.0 / side2.sqrt();
+            lam *= (a_sum / q_sum).sqrt();
             let Some(lam) = eq.refine(lam) else {
                 continue;
             };
@@ -447,29 +458,30 @@ pub fn p3p(
             let w3 = v3 * (1.0 / n3.sqrt());
             let w2 = w3.cross(&w1);
             // world_from_rig = [u1 u2 u3] [w1 w2 w3]ᵀ.
-            let row = |i: usize| {
-                Vector3::new(
-                    u1[i] * w1.x + u2[i] * w2.x + u3[i] * w3.x,
-                    u1[i] * w1.y + u2[i] * w2.y + u3[i] * w3.y,
-                    u1[i] * w1.z + u2[i] * w2.z + u3[i] * w3.z,
-                )
-            };
-            let (q0, q1, q2) = (row(0), row(1), row(2));
-            let origin = x1 - Vector3::new(q0.dot(&p1), q1.dot(&p1), q2.dot(&p1));
+            let rot = Matrix3::new(
+                u1.x * w1.x + u2.x * w2.x + u3.x * w3.x,
+                u1.x * w1.y + u2.x * w2.y + u3.x * w3.y,
+                u1.x * w1.z + u2.x * w2.z + u3.x * w3.z,
+                u1.y * w1.x + u2.y * w2.x + u3.y * w3.x,
+                u1.y * w1.y + u2.y * w2.y + u3.y * w3.y,
+                u1.y * w1.z + u2.y * w2.z + u3.y * w3.z,
+                u1.z * w1.x + u2.z * w2.x + u3.z * w3.x,
+                u1.z * w1.y + u2.z * w2.y + u3.z * w3.y,
+                u1.z * w1.z + u2.z * w2.z + u3.z * w3.z,
+            );
+            let origin = x1 - rot * p1;
             // One test for all twelve entries: a NaN or infinity makes the sum non-finite
             // (the entries are bounded, so the sum cannot overflow on its own).
-            let total = q0.sum() + q1.sum() + q2.sum() + origin.sum();
+            let total = rot.sum() + origin.sum();
             if !total.is_finite() {
                 continue;
             }
-            let rot = Matrix3::from_rows(&[q0.transpose(), q1.transpose(), q2.transpose()]);
             let _ = solutions.try_push(Pose::from_parts(
                 Translation3::from(origin),
                 Rotation3::from_matrix_unchecked(rot),
             ));
         }
     }
-    solutions
 }
 
 /// The three normalised distance equations `λᵢ² + λⱼ² − 2bᵢⱼλᵢλⱼ = aᵢⱼ`, ordered 12, 13, 23.
