@@ -103,51 +103,6 @@ impl Sym3 {
             + self.zz * o.zz
             + 2.0 * (self.xy * o.xy + self.xz * o.xz + self.yz * o.yz)
     }
-
-    /// Determinant, from a precomputed adjugate.
-    #[inline(always)]
-    fn det_with(&self, adj: &Self) -> f64 {
-        self.xx * adj.xx + self.xy * adj.xy + self.xz * adj.xz
-    }
-
-    /// `self + s · o`.
-    #[inline(always)]
-    fn add_scaled(&self, s: f64, o: &Self) -> Self {
-        Self {
-            xx: self.xx + s * o.xx,
-            xy: self.xy + s * o.xy,
-            xz: self.xz + s * o.xz,
-            yy: self.yy + s * o.yy,
-            yz: self.yz + s * o.yz,
-            zz: self.zz + s * o.zz,
-        }
-    }
-
-    /// `self · v`.
-    #[inline(always)]
-    fn mul(&self, v: &Vector3<f64>) -> Vector3<f64> {
-        Vector3::new(
-            self.xx * v.x + self.xy * v.y + self.xz * v.z,
-            self.xy * v.x + self.yy * v.y + self.yz * v.z,
-            self.xz * v.x + self.yz * v.y + self.zz * v.z,
-        )
-    }
-
-    /// Column `k` (0, 1 or 2).
-    #[inline(always)]
-    fn col(&self, k: usize) -> Vector3<f64> {
-        match k {
-            0 => Vector3::new(self.xx, self.xy, self.xz),
-            1 => Vector3::new(self.xy, self.yy, self.yz),
-            _ => Vector3::new(self.xz, self.yz, self.zz),
-        }
-    }
-
-    /// The diagonal.
-    #[inline(always)]
-    fn diag(&self) -> Vector3<f64> {
-        Vector3::new(self.xx, self.yy, self.zz)
-    }
 }
 
 /// `x > 0`, false for NaN: the guard form used before every square root and division.
@@ -380,107 +335,166 @@ fn solve_into(
     let u1 = d12 * (1.0 / a12r.sqrt());
     let u3 = normal * (1.0 / nn.sqrt());
     let u2 = u3.cross(&u1);
-    let ys = [y1, y2, y3];
-    let eq = Equations {
-        a: [a12, a13, a23],
-        b: [b12, b13, b23],
+    let frame = Frame {
+        ys: [y1, y2, y3],
+        x1: *x1,
+        u: [u1, u2, u3],
+        eq: Equations {
+            a: [a12, a13, a23],
+            b: [b12, b13, b23],
+        },
+        a_sum: a12 + a13 + a23,
+        scale: a_max.sqrt(),
     };
-    let a_sum = a12 + a13 + a23;
-    let scale = a_max.sqrt();
 
     let n_lines = if double_line { 1 } else { 2 };
     for u in &lines[..n_lines] {
         // The plane u·Λ = 0 meets the open positive octant only if u has entries of both
         // signs: skip lines that cannot carry positive ranges.
-        let (lo, hi) = (u.x.min(u.y).min(u.z), u.x.max(u.y).max(u.z));
-        if !(lo < 0.0 && hi > 0.0) {
+        let any_neg = u.x < 0.0 || u.y < 0.0 || u.z < 0.0;
+        let any_pos = u.x > 0.0 || u.y > 0.0 || u.z > 0.0;
+        if !(any_neg && any_pos) {
             continue;
         }
-        // Two independent vectors spanning the plane u·Λ = 0 (u × eₖ for the two axes k
-        // other than the largest component of u).
-        let (va, vb) = match argmax_abs(u) {
-            0 => (Vector3::new(-u.z, 0.0, u.x), Vector3::new(u.y, -u.x, 0.0)),
-            1 => (Vector3::new(0.0, u.z, -u.y), Vector3::new(u.y, -u.x, 0.0)),
-            _ => (Vector3::new(0.0, u.z, -u.y), Vector3::new(-u.z, 0.0, u.x)),
+        // Λ = α va + β vb spans the plane u·Λ = 0, with va = uₖeᵢ − uᵢeₖ and
+        // vb = uₖeⱼ − uⱼeₖ for k the largest entry of u and (i, j) the other two axes.
+        // On the other conic R: A α² + 2B αβ + C β² = 0, with (rᵢⱼ the entries of R)
+        // A = uₖ²rᵢᵢ − 2uₖuᵢrᵢₖ + uᵢ²rₖₖ, B = uₖ²rᵢⱼ − uₖuⱼrᵢₖ − uₖuᵢrⱼₖ + uᵢuⱼrₖₖ,
+        // C = uₖ²rⱼⱼ − 2uₖuⱼrⱼₖ + uⱼ²rₖₖ.
+        let r = &restrict;
+        let (ui, uj, uk, [rii, rjj, rkk, rij, rik, rjk], va, vb) = match argmax_abs(u) {
+            0 => (
+                u.y,
+                u.z,
+                u.x,
+                [r.yy, r.zz, r.xx, r.yz, r.xy, r.xz],
+                Vector3::new(-u.y, u.x, 0.0),
+                Vector3::new(-u.z, 0.0, u.x),
+            ),
+            1 => (
+                u.x,
+                u.z,
+                u.y,
+                [r.xx, r.zz, r.yy, r.xz, r.xy, r.yz],
+                Vector3::new(u.y, -u.x, 0.0),
+                Vector3::new(0.0, -u.z, u.y),
+            ),
+            _ => (
+                u.x,
+                u.y,
+                u.z,
+                [r.xx, r.yy, r.zz, r.xy, r.xz, r.yz],
+                Vector3::new(u.z, 0.0, -u.x),
+                Vector3::new(0.0, u.z, -u.y),
+            ),
         };
-        // Λ = α va + β vb on the other conic: A α² + 2B αβ + C β² = 0.
-        let cva = restrict.mul(&va);
-        let qa = va.dot(&cva);
-        let qb = vb.dot(&cva);
-        let qc = vb.dot(&restrict.mul(&vb));
+        let (kk, ki, kj) = (uk * uk, uk * ui, uk * uj);
+        let qa = kk * rii - 2.0 * ki * rik + ui * ui * rkk;
+        let qb = kk * rij - kj * rik - ki * rjk + ui * uj * rkk;
+        let qc = kk * rjj - 2.0 * kj * rjk + uj * uj * rkk;
         let disc = qb * qb - qa * qc;
         if disc < -DISCRIMINANT_TOL * (qb * qb + (qa * qc).abs()) {
             continue;
         }
         let sq = disc.max(0.0).sqrt();
         let w = -(qb + sq.copysign(qb));
-        // The two roots (α, β) = (w, A) and (C, w), division-free.
-        let roots = [(w, qa), (qc, w)];
-        let n_roots = if sq > 0.0 { 2 } else { 1 };
-        // A double root: keep whichever representation is not (nearly) zero.
-        let first = usize::from(n_roots == 1 && qa.abs() < qc.abs());
-        for &(alpha, beta) in &roots[first..first + n_roots] {
-            let mut lam = va * alpha + vb * beta;
-            // Same sign for all three ranges, else no physical solution.
-            if lam.x < 0.0 {
-                lam = -lam;
-            }
-            if !(lam.x > 0.0 && lam.y > 0.0 && lam.z > 0.0) {
-                continue;
-            }
-            // Fix the scale by the sum of the three distance equations (well conditioned:
-            // every term is non-negative).
-            let q_sum = 2.0 * (lam.x * lam.x + lam.y * lam.y + lam.z * lam.z)
-                - 2.0 * (b12 * lam.x * lam.y + b13 * lam.x * lam.z + b23 * lam.y * lam.z);
-            if !positive(q_sum) {
-                continue;
-            }
-            lam *= (a_sum / q_sum).sqrt();
-            let Some(lam) = eq.refine(lam) else {
-                continue;
-            };
-            let lam = lam * scale;
-            if !(lam.x > 0.0 && lam.y > 0.0 && lam.z > 0.0) {
-                continue;
-            }
-            // The same frame built from the rig-frame triangle; world_from_rig maps one onto
-            // the other. Built from orthonormal frames, the rotation is orthonormal with
-            // det +1 even when the triangle is thin.
-            let p1 = ys[0] * lam.x;
-            let v1 = p1 - ys[1] * lam.y;
-            let v2 = p1 - ys[2] * lam.z;
-            let v3 = v1.cross(&v2);
-            let (n1, n3) = (v1.norm_squared(), v3.norm_squared());
-            if !(n1 > 0.0 && n3 > 0.0) {
-                continue;
-            }
-            let w1 = v1 * (1.0 / n1.sqrt());
-            let w3 = v3 * (1.0 / n3.sqrt());
-            let w2 = w3.cross(&w1);
-            // world_from_rig = [u1 u2 u3] [w1 w2 w3]ᵀ.
-            let rot = Matrix3::new(
-                u1.x * w1.x + u2.x * w2.x + u3.x * w3.x,
-                u1.x * w1.y + u2.x * w2.y + u3.x * w3.y,
-                u1.x * w1.z + u2.x * w2.z + u3.x * w3.z,
-                u1.y * w1.x + u2.y * w2.x + u3.y * w3.x,
-                u1.y * w1.y + u2.y * w2.y + u3.y * w3.y,
-                u1.y * w1.z + u2.y * w2.z + u3.y * w3.z,
-                u1.z * w1.x + u2.z * w2.x + u3.z * w3.x,
-                u1.z * w1.y + u2.z * w2.y + u3.z * w3.y,
-                u1.z * w1.z + u2.z * w2.z + u3.z * w3.z,
-            );
-            let origin = x1 - rot * p1;
-            // One test for all twelve entries: a NaN or infinity makes the sum non-finite
-            // (the entries are bounded, so the sum cannot overflow on its own).
-            let total = rot.sum() + origin.sum();
-            if !total.is_finite() {
-                continue;
-            }
-            let _ = solutions.try_push(Pose::from_parts(
-                Translation3::from(origin),
-                Rotation3::from_matrix_unchecked(rot),
-            ));
+        // The two roots (α, β) = (w, A) and (C, w), division-free; a double root keeps
+        // whichever representation is not (nearly) zero.
+        if sq > 0.0 {
+            frame.try_candidate(va * w + vb * qa, solutions);
+            frame.try_candidate(va * qc + vb * w, solutions);
+        } else if qa.abs() >= qc.abs() {
+            frame.try_candidate(va * w + vb * qa, solutions);
+        } else {
+            frame.try_candidate(va * qc + vb * w, solutions);
         }
+    }
+}
+
+/// What the candidates of one problem share: the rig-frame bearings, the world triangle's
+/// first point and orthonormal frame, and the normalised distance equations.
+struct Frame {
+    /// Unit bearings.
+    ys: [Vector3<f64>; 3],
+    /// First world point.
+    x1: Vector3<f64>,
+    /// World frame of the triangle: edge 12, in-plane normal, plane normal.
+    u: [Vector3<f64>; 3],
+    /// Normalised distance equations.
+    eq: Equations,
+    /// a12 + a13 + a23 (normalised).
+    a_sum: f64,
+    /// Length of the longest side (metres): the normalisation.
+    scale: f64,
+}
+
+impl Frame {
+    /// Completes a candidate direction of the ranges (any scale and sign) into a pose and
+    /// pushes it, if its ranges are positive and satisfy the distance equations.
+    #[inline(always)]
+    fn try_candidate(&self, mut lam: Vector3<f64>, solutions: &mut PoseSolutions) {
+        // Same sign for all three ranges, else no physical solution.
+        if lam.x < 0.0 {
+            lam = -lam;
+        }
+        if !(lam.x > 0.0 && lam.y > 0.0 && lam.z > 0.0) {
+            return;
+        }
+        // Fix the scale by the sum of the three distance equations (well conditioned:
+        // every term is non-negative).
+        let [b12, b13, b23] = self.eq.b;
+        let q_sum = 2.0 * (lam.x * lam.x + lam.y * lam.y + lam.z * lam.z)
+            - 2.0 * (b12 * lam.x * lam.y + b13 * lam.x * lam.z + b23 * lam.y * lam.z);
+        if !positive(q_sum) {
+            return;
+        }
+        lam *= (self.a_sum / q_sum).sqrt();
+        let Some(lam) = self.eq.refine(lam) else {
+            return;
+        };
+        let lam = lam * self.scale;
+        if !(lam.x > 0.0 && lam.y > 0.0 && lam.z > 0.0) {
+            return;
+        }
+        // The same frame built from the rig-frame triangle; world_from_rig maps one onto
+        // the other. Built from orthonormal frames, the rotation is orthonormal with
+        // det +1 even when the triangle is thin.
+        let [y1, y2, y3] = &self.ys;
+        let p1 = y1 * lam.x;
+        let v1 = p1 - y2 * lam.y;
+        let v2 = p1 - y3 * lam.z;
+        let v3 = v1.cross(&v2);
+        let (n1, n3) = (v1.norm_squared(), v3.norm_squared());
+        if !(n1 > 0.0 && n3 > 0.0) {
+            return;
+        }
+        let w1 = v1 * (1.0 / n1.sqrt());
+        let w3 = v3 * (1.0 / n3.sqrt());
+        let w2 = w3.cross(&w1);
+        let [u1, u2, u3] = &self.u;
+        // world_from_rig = [u1 u2 u3] [w1 w2 w3]ᵀ.
+        let rot = Matrix3::new(
+            u1.x * w1.x + u2.x * w2.x + u3.x * w3.x,
+            u1.x * w1.y + u2.x * w2.y + u3.x * w3.y,
+            u1.x * w1.z + u2.x * w2.z + u3.x * w3.z,
+            u1.y * w1.x + u2.y * w2.x + u3.y * w3.x,
+            u1.y * w1.y + u2.y * w2.y + u3.y * w3.y,
+            u1.y * w1.z + u2.y * w2.z + u3.y * w3.z,
+            u1.z * w1.x + u2.z * w2.x + u3.z * w3.x,
+            u1.z * w1.y + u2.z * w2.y + u3.z * w3.y,
+            u1.z * w1.z + u2.z * w2.z + u3.z * w3.z,
+        );
+        let origin = self.x1 - rot * p1;
+        // One test for all twelve entries: a NaN or infinity makes the sum non-finite
+        // (the entries are bounded, so the sum cannot overflow on its own).
+        let total = rot.sum() + origin.sum();
+        if !total.is_finite() {
+            return;
+        }
+        let _ = solutions.try_push(Pose::from_parts(
+            Translation3::from(origin),
+            Rotation3::from_matrix_unchecked(rot),
+        ));
     }
 }
 
