@@ -58,6 +58,13 @@ const CUBIC_LEADING_TOL: f64 = 1e-14;
 /// as a double root, and a (slightly) positive eigenvalue product as a double line.
 const DISCRIMINANT_TOL: f64 = 1e-12;
 
+/// Largest accepted magnitude of the root γ of the pencil's cubic. With the normalised
+/// coefficients (|aᵢⱼ|, |bᵢⱼ|, sᵢⱼ ≤ 1) and the leading coefficient at least
+/// [`CUBIC_LEADING_TOL`] times the others, every root satisfies |γ| < 1 + 1e14 (Cauchy's
+/// bound); anything beyond this is a failed iteration. It also bounds D0 and what follows,
+/// so no later overflow is possible.
+const MAX_PENCIL_ROOT: f64 = 1e20;
+
 /// Most Newton steps on the distance equations (the paper uses a few Gauss-Newton steps;
 /// the closed-form ranges are usually accurate to 1e-12 or better, so one step suffices).
 const REFINE_STEPS: usize = 3;
@@ -124,21 +131,36 @@ fn argmax_abs(v: &Vector3<f64>) -> usize {
     }
 }
 
-/// The unit vector along `v`, or `None` if `v` is zero or not finite. Rescales vectors
-/// whose squared norm would under- or overflow.
+/// Squared norms accepted by the fast normalisation (no under- or overflow).
+const FAST_NORM2_RANGE: (f64, f64) = (1e-280, 1e280);
+
+/// `n2` within [`FAST_NORM2_RANGE`] (false for NaN).
 #[inline(always)]
-fn unit(v: &Vector3<f64>) -> Option<Vector3<f64>> {
-    let n2 = v.norm_squared();
-    if n2 > 1e-280 && n2 < 1e280 {
-        return Some(v * (1.0 / n2.sqrt()));
-    }
-    let m = v.amax();
-    if !(m > 0.0 && m.is_finite()) {
-        return None;
-    }
-    let w = v / m;
-    let n = w.norm();
-    Some(w / n)
+fn fast_norm2(n2: f64) -> bool {
+    n2 > FAST_NORM2_RANGE.0 && n2 < FAST_NORM2_RANGE.1
+}
+
+/// The larger of two numbers (plain comparison: no NaN handling, the callers check).
+#[inline(always)]
+fn max2(a: f64, b: f64) -> f64 {
+    if a > b { a } else { b }
+}
+
+/// The three unit bearings, rescaling vectors whose squared norm would under- or overflow;
+/// `None` if one is zero or not finite. The slow path of the normalisation.
+#[cold]
+#[inline(never)]
+fn units_rescaled(v: &[Vector3<f64>; 3]) -> Option<[Vector3<f64>; 3]> {
+    let unit = |v: &Vector3<f64>| {
+        let m = v.amax();
+        if !(m > 0.0 && m.is_finite()) {
+            return None;
+        }
+        let w = v / m;
+        let n = w.norm();
+        Some(w / n)
+    };
+    Some([unit(&v[0])?, unit(&v[1])?, unit(&v[2])?])
 }
 
 /// Every pose of a rig that sees three world points along three bearings (P3P), by the
@@ -195,12 +217,19 @@ fn solve_into(
     solutions: &mut PoseSolutions,
 ) {
     // --- Input checks and normalisation -------------------------------------------------
-    let (Some(y1), Some(y2), Some(y3)) = (
-        unit(&bearings_in_rig[0]),
-        unit(&bearings_in_rig[1]),
-        unit(&bearings_in_rig[2]),
-    ) else {
-        return;
+    let [r1, r2, r3] = bearings_in_rig;
+    let (n1, n2, n3) = (r1.norm_squared(), r2.norm_squared(), r3.norm_squared());
+    let [y1, y2, y3] = if fast_norm2(n1) && fast_norm2(n2) && fast_norm2(n3) {
+        [
+            r1 * (1.0 / n1.sqrt()),
+            r2 * (1.0 / n2.sqrt()),
+            r3 * (1.0 / n3.sqrt()),
+        ]
+    } else {
+        match units_rescaled(bearings_in_rig) {
+            Some(ys) => ys,
+            None => return,
+        }
     };
     // Squared sines of the angles between the bearings, from cross products (accurate for
     // small angles, where 1 − b² is not); they are also the sᵢⱼ of the cubic below.
@@ -218,8 +247,9 @@ fn solve_into(
     let (a12r, a13r, a23r) = (d12.norm_squared(), d13.norm_squared(), d23.norm_squared());
     let normal = d12.cross(&d13);
     let nn = normal.norm_squared();
-    let a_max = a12r.max(a13r).max(a23r);
-    // Also rejects NaN and infinite points (the comparisons are then false).
+    let a_max = max2(max2(a12r, a13r), a23r);
+    // Also rejects NaN and infinite points: a non-finite coordinate makes the normal (a
+    // cross product of the differences) non-finite, and the comparisons false.
     if !(nn.is_finite()
         && a_max.is_finite()
         && nn > MIN_TRIANGLE_SHAPE * MIN_TRIANGLE_SHAPE * a_max * a_max)
@@ -262,7 +292,8 @@ fn solve_into(
         } else {
             let inv = 1.0 / p3;
             let gamma = outer_real_root(-p2 * inv, p1 * inv, -p0 * inv);
-            if !gamma.is_finite() {
+            // Also rejects NaN: a root beyond the bound is a failed iteration.
+            if !(gamma.abs() <= MAX_PENCIL_ROOT) {
                 return;
             }
             // D0 = D1 + γ D2; on a line of D0, D1 = −γ D2: restrict the better-scaled one.
@@ -321,8 +352,10 @@ fn solve_into(
             best = k;
         }
     }
-    // Also rejects NaN (D0 = 0 would mean a vanishing pencil).
-    if !(positive(best_abs) && best_abs.is_finite() && crate::geometry::is_finite(&p)) {
+    // D0 = 0 would mean a vanishing pencil. Everything here is finite: the normalised aᵢⱼ,
+    // bᵢⱼ, sᵢⱼ are at most 1 in magnitude and |γ| ≤ MAX_PENCIL_ROOT, so D0, its adjugate, p
+    // and C are bounded far below overflow.
+    if !positive(best_abs) {
         return;
     }
     let (bi, bj) = (best / 3, best % 3);
