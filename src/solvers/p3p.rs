@@ -121,7 +121,12 @@ fn positive(x: f64) -> bool {
 /// Index of the entry of largest magnitude.
 #[inline(always)]
 fn argmax_abs(v: &Vector3<f64>) -> usize {
-    let (a, b, c) = (v.x.abs(), v.y.abs(), v.z.abs());
+    argmax3(v.x.abs(), v.y.abs(), v.z.abs())
+}
+
+/// Index (0, 1 or 2) of the largest of three numbers, the first on ties.
+#[inline(always)]
+fn argmax3(a: f64, b: f64, c: f64) -> usize {
     if a >= b {
         if a >= c { 0 } else { 2 }
     } else if b >= c {
@@ -333,35 +338,26 @@ fn solve_into(
     } else {
         pcol * (1.0 / pkk.sqrt())
     };
-    let c = [
-        d0.xx,
-        d0.xy - p.z,
-        d0.xz + p.y,
-        d0.xy + p.z,
-        d0.yy,
-        d0.yz - p.x,
-        d0.xz - p.y,
-        d0.yz + p.x,
-        d0.zz,
+    let rows = [
+        Vector3::new(d0.xx, d0.xy - p.z, d0.xz + p.y),
+        Vector3::new(d0.xy + p.z, d0.yy, d0.yz - p.x),
+        Vector3::new(d0.xz - p.y, d0.yz + p.x, d0.zz),
     ];
-    let mut best = 0;
-    let mut best_abs = c[0].abs();
-    for (k, e) in c.iter().enumerate().skip(1) {
-        if e.abs() > best_abs {
-            best_abs = e.abs();
-            best = k;
-        }
-    }
+    // The entry of largest magnitude, (bi, bj): its row and its column are the best
+    // conditioned representatives of the two lines.
+    let row_max = rows.map(|r| max2(max2(r.x.abs(), r.y.abs()), r.z.abs()));
+    let bi = argmax3(row_max[0], row_max[1], row_max[2]);
+    let row = rows[bi];
+    let bj = argmax3(row.x.abs(), row.y.abs(), row.z.abs());
     // D0 = 0 would mean a vanishing pencil. Everything here is finite: the normalised aᵢⱼ,
     // bᵢⱼ, sᵢⱼ are at most 1 in magnitude and |γ| ≤ MAX_PENCIL_ROOT, so D0, its adjugate, p
     // and C are bounded far below overflow.
-    if !positive(best_abs) {
+    if !positive(row_max[bi]) {
         return;
     }
-    let (bi, bj) = (best / 3, best % 3);
     let lines = [
-        Vector3::new(c[bi * 3], c[bi * 3 + 1], c[bi * 3 + 2]),
-        Vector3::new(c[bj], c[bj + 3], c[bj + 6]),
+        row,
+        Vector3::new(rows[0][bj], rows[1][bj], rows[2][bj]),
     ];
 
     // --- World-side orthonormal frame of the triangle: (edge 12, in-plane, normal) ----------
