@@ -151,6 +151,21 @@ fn max2(a: f64, b: f64) -> f64 {
     if a > b { a } else { b }
 }
 
+/// Squared sine above which 1 − b² (b the cosine of unit bearings) is accurate enough to
+/// show that a pair of bearings passes the [`MIN_BEARING_SINE`] guard.
+const SMALL_SINE2: f64 = 1e-6;
+
+/// The parallel-bearing guard from cross products: every pair of unit bearings at a sine
+/// above [`MIN_BEARING_SINE`]. The slow path for nearly (anti)parallel pairs.
+#[cold]
+#[inline(never)]
+fn bearings_apart(y1: &Vector3<f64>, y2: &Vector3<f64>, y3: &Vector3<f64>) -> bool {
+    let min_sin2 = MIN_BEARING_SINE * MIN_BEARING_SINE;
+    y1.cross(y2).norm_squared() > min_sin2
+        && y1.cross(y3).norm_squared() > min_sin2
+        && y2.cross(y3).norm_squared() > min_sin2
+}
+
 /// The three unit bearings, rescaling vectors whose squared norm would under- or overflow;
 /// `None` if one is zero or not finite. The slow path of the normalisation.
 #[cold]
@@ -236,13 +251,14 @@ fn solve_into(
             None => return,
         }
     };
-    // Squared sines of the angles between the bearings, from cross products (accurate for
-    // small angles, where 1 − b² is not); they are also the sᵢⱼ of the cubic below.
-    let s12 = y1.cross(&y2).norm_squared();
-    let s13 = y1.cross(&y3).norm_squared();
-    let s23 = y2.cross(&y3).norm_squared();
-    let min_sin2 = MIN_BEARING_SINE * MIN_BEARING_SINE;
-    if !(s12 > min_sin2 && s13 > min_sin2 && s23 > min_sin2) {
+    let (b12, b13, b23) = (y1.dot(&y2), y1.dot(&y3), y2.dot(&y3));
+    // Squared sines of the angles between the bearings, the sᵢⱼ of the cubic below.
+    let (s12, s13, s23) = (1.0 - b12 * b12, 1.0 - b13 * b13, 1.0 - b23 * b23);
+    // 1 − b² cannot resolve the tiny angles of the parallel-bearing guard: below
+    // SMALL_SINE2 the guard uses the cross products (exact for small angles).
+    if !(s12 > SMALL_SINE2 && s13 > SMALL_SINE2 && s23 > SMALL_SINE2)
+        && !bearings_apart(&y1, &y2, &y3)
+    {
         return;
     }
     let [x1, x2, x3] = points_in_world;
@@ -263,7 +279,6 @@ fn solve_into(
     }
     let inv_a = 1.0 / a_max;
     let (a12, a13, a23) = (a12r * inv_a, a13r * inv_a, a23r * inv_a);
-    let (b12, b13, b23) = (y1.dot(&y2), y1.dot(&y3), y2.dot(&y3));
 
     // --- The pencil of conics and one degenerate member -----------------------------------
     // D1 = a23 M12 − a12 M23 and D2 = a23 M13 − a13 M23 (see the module documentation).
