@@ -570,12 +570,13 @@ impl Equations {
         let mut step_count = 0;
         loop {
             let [r1, r2, r3] = self.residual(&l);
-            let worst = r1.abs().max(r2.abs()).max(r3.abs());
-            if worst <= REFINE_CONVERGED {
+            // Each test is false for NaN.
+            let within = |tol: f64| r1.abs() <= tol && r2.abs() <= tol && r3.abs() <= tol;
+            if within(REFINE_CONVERGED) {
                 return Some(l);
             }
             if step_count == REFINE_STEPS {
-                return (worst <= MAX_RESIDUAL).then_some(l);
+                return within(MAX_RESIDUAL).then_some(l);
             }
             step_count += 1;
             // Half the Jacobian: rows ∂/∂λ of equations 12, 13, 23.
@@ -593,7 +594,7 @@ impl Equations {
                 (x21 * x32 * r1 - x11 * x32 * r2 - x12 * x21 * r3) * k,
             );
             if !crate::geometry::is_finite(&step) {
-                return (worst <= MAX_RESIDUAL).then_some(l);
+                return within(MAX_RESIDUAL).then_some(l);
             }
             l += step;
         }
