@@ -139,10 +139,10 @@ fn argmax3(a: f64, b: f64, c: f64) -> usize {
 /// Squared norms accepted by the fast normalisation (no under- or overflow).
 const FAST_NORM2_RANGE: (f64, f64) = (1e-280, 1e280);
 
-/// `n2` within [`FAST_NORM2_RANGE`] (false for NaN).
+/// The smaller of two numbers (plain comparison: no NaN handling, the callers check).
 #[inline(always)]
-fn fast_norm2(n2: f64) -> bool {
-    n2 > FAST_NORM2_RANGE.0 && n2 < FAST_NORM2_RANGE.1
+fn min2(a: f64, b: f64) -> f64 {
+    if a < b { a } else { b }
 }
 
 /// The larger of two numbers (plain comparison: no NaN handling, the callers check).
@@ -239,7 +239,9 @@ fn solve_into(
     // --- Input checks and normalisation -------------------------------------------------
     let [r1, r2, r3] = bearings_in_rig;
     let (n1, n2, n3) = (r1.norm_squared(), r2.norm_squared(), r3.norm_squared());
-    let [y1, y2, y3] = if fast_norm2(n1) && fast_norm2(n2) && fast_norm2(n3) {
+    // All three within FAST_NORM2_RANGE; a NaN or infinity makes the sum fail the test.
+    let fast = min2(min2(n1, n2), n3) > FAST_NORM2_RANGE.0 && n1 + n2 + n3 < FAST_NORM2_RANGE.1;
+    let [y1, y2, y3] = if fast {
         [
             r1 * (1.0 / n1.sqrt()),
             r2 * (1.0 / n2.sqrt()),
