@@ -389,7 +389,7 @@ fn solve_into(
             a: [a12, a13, a23],
             b: [b12, b13, b23],
         },
-        a_sum: a12 + a13 + a23,
+        half_a_sum: 0.5 * (a12 + a13 + a23),
         scale: a_max.sqrt(),
     };
 
@@ -468,8 +468,8 @@ struct Frame {
     u: [Vector3<f64>; 3],
     /// Normalised distance equations.
     eq: Equations,
-    /// a12 + a13 + a23 (normalised).
-    a_sum: f64,
+    /// (a12 + a13 + a23) / 2 (normalised).
+    half_a_sum: f64,
     /// Length of the longest side (metres): the normalisation.
     scale: f64,
 }
@@ -487,24 +487,24 @@ impl Frame {
             return;
         }
         // Fix the scale by the sum of the three distance equations (well conditioned:
-        // every term is non-negative).
+        // every term is non-negative); half of it on both sides.
         let [b12, b13, b23] = self.eq.b;
-        let q_sum = 2.0 * (lam.x * lam.x + lam.y * lam.y + lam.z * lam.z)
-            - 2.0 * (b12 * lam.x * lam.y + b13 * lam.x * lam.z + b23 * lam.y * lam.z);
-        if !positive(q_sum) {
+        let half_q_sum = (lam.x * lam.x + lam.y * lam.y + lam.z * lam.z)
+            - (b12 * lam.x * lam.y + b13 * lam.x * lam.z + b23 * lam.y * lam.z);
+        if !positive(half_q_sum) {
             return;
         }
-        lam *= (self.a_sum / q_sum).sqrt();
+        lam *= (self.half_a_sum / half_q_sum).sqrt();
         let Some(lam) = self.eq.refine(lam) else {
             return;
         };
-        let lam = lam * self.scale;
         if !(lam.x > 0.0 && lam.y > 0.0 && lam.z > 0.0) {
             return;
         }
-        // The same frame built from the rig-frame triangle; world_from_rig maps one onto
-        // the other. Built from orthonormal frames, the rotation is orthonormal with
-        // det +1 even when the triangle is thin.
+        // The same frame built from the rig-frame triangle (in normalised units, so that
+        // nothing can overflow); world_from_rig maps one onto the other. Built from
+        // orthonormal frames, the rotation is orthonormal with det +1 even when the
+        // triangle is thin.
         let [y1, y2, y3] = &self.ys;
         let p1 = y1 * lam.x;
         let v1 = p1 - y2 * lam.y;
@@ -530,7 +530,7 @@ impl Frame {
             u1.z * w1.y + u2.z * w2.y + u3.z * w3.y,
             u1.z * w1.z + u2.z * w2.z + u3.z * w3.z,
         );
-        let origin = self.x1 - rot * p1;
+        let origin = self.x1 - rot * (p1 * self.scale);
         // One test for all twelve entries: a NaN or infinity makes the sum non-finite
         // (the entries are bounded, so the sum cannot overflow on its own).
         let total = rot.sum() + origin.sum();
