@@ -71,15 +71,25 @@ pub(crate) fn outer_real_root(b: f64, c: f64, d: f64) -> f64 {
 /// (zero denominator).
 #[inline(always)]
 fn halley(b: f64, c: f64, d: f64, mut t: f64) -> f64 {
-    for _ in 0..MAX_HALLEY_STEPS {
+    // The Halley step at t, or None where it is not finite (zero denominator).
+    let step_at = |t: f64| {
         let f = eval(b, c, d, t);
         let df = (3.0 * t + 2.0 * b) * t + c;
         // Half the second derivative.
         let h = 3.0 * t + b;
         let step = f * df / (df * df - f * h);
-        if !step.is_finite() {
+        step.is_finite().then_some(step)
+    };
+    // The start is never within HALLEY_REL_STEP of the root in practice: the first step
+    // is taken without the convergence test.
+    match step_at(t) {
+        Some(step) => t -= step,
+        None => return t,
+    }
+    for _ in 1..MAX_HALLEY_STEPS {
+        let Some(step) = step_at(t) else {
             break;
-        }
+        };
         t -= step;
         if step.abs() <= HALLEY_REL_STEP * t.abs() {
             break;
