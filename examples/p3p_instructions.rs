@@ -31,7 +31,10 @@ fn main() {
         .collect();
     if noisy {
         let sigma = 0.5f64.to_radians();
-        problems = problems.iter().map(|p| p.with_noise(&mut r, sigma)).collect();
+        problems = problems
+            .iter()
+            .map(|p| p.with_noise(&mut r, sigma))
+            .collect();
     }
     let mut n_solutions = 0usize;
     for p in &problems {

@@ -10,15 +10,20 @@
 //!
 //! Writing `Λ = (λ₁, λ₂, λ₃)` and `Mᵢⱼ` for the quadratic form of the left-hand side, the
 //! scale-free conics `D₁ = a₂₃M₁₂ − a₁₂M₂₃` and `D₂ = a₂₃M₁₃ − a₁₃M₂₃` satisfy
-//! `ΛᵀD₁Λ = ΛᵀD₂Λ = 0`. A real root `γ` of the cubic `det(D₁ + γD₂) = 0` gives a degenerate
-//! conic `D₀ = D₁ + γD₂`, a pair of lines through every solution. Its eigen-decomposition
-//! `D₀ = σ₁e₁e₁ᵀ + σ₂e₂e₂ᵀ` (σ₁σ₂ ≤ 0) splits it into the lines
-//! `(√|σ₁| e₁ ± √|σ₂| e₂)·Λ = 0`; on each line the other conic leaves a quadratic in the
-//! ratio of two ranges, and one distance equation fixes the scale. No quartic is solved.
-//! The ranges are then polished by Gauss-Newton (Newton) steps on the three distance
-//! equations, and the pose follows from the two congruent triangles: the rotation maps the
-//! orthonormal frame (edge 12, in-plane normal, plane normal) of the rig-frame triangle
-//! `λᵢyᵢ` onto that of the world triangle `xᵢ`, and the rig origin is `x₁ − R λ₁y₁`.
+//! `ΛᵀD₁Λ = ΛᵀD₂Λ = 0`. A real root `γ` of the cubic `det(D₁ + γD₂) = 0` (its coefficients
+//! in closed form in `aᵢⱼ`, `bᵢⱼ` and `sᵢⱼ = 1 − bᵢⱼ²`, as in the paper; the root by
+//! Halley's method, see `cubic.rs`) gives a degenerate conic `D₀ = D₁ + γD₂`, a pair of
+//! lines `l`, `m` through every solution: `D₀ = ½(l mᵀ + m lᵀ)`. It is split without an
+//! eigen-decomposition: `adj D₀ = −p pᵀ` with `p = ½ l × m`, so `p` is a column of the
+//! adjugate over the square root of its diagonal entry, and `D₀ + [p]ₓ = l mᵀ` has rank one:
+//! its row and column through its largest entry are the two lines (`σ₁σ₂ = tr adj D₀ ≤ 0`
+//! for a real pair). On each line the other conic leaves a homogeneous quadratic in two
+//! ranges, and the sum of the three distance equations fixes the scale. No quartic is
+//! solved. The ranges are then polished by Gauss-Newton (Newton) steps on the three
+//! distance equations when their residual is not already negligible, and the pose follows
+//! from the two congruent triangles: the rotation maps the orthonormal frame (edge 12,
+//! in-plane normal, plane normal) of the rig-frame triangle `λᵢyᵢ` onto that of the world
+//! triangle `xᵢ`, and the rig origin is `x₁ − R λ₁y₁`.
 //!
 //! # Omnidirectional bearings
 //! Nothing in the method assumes a bearing in front of a pinhole: only the dot products
@@ -228,8 +233,7 @@ pub fn p3p(
     solutions
 }
 
-/// The body of [`p3p`], writing into the caller's list (so that the list is built in place
-/// rather than copied out of every early return).
+/// The body of [`p3p`], pushing every solution into `solutions`.
 #[inline(always)]
 fn solve_into(
     bearings_in_rig: &[Vector3<f64>; 3],
@@ -372,10 +376,7 @@ fn solve_into(
     if !positive(row_max[bi]) {
         return;
     }
-    let lines = [
-        row,
-        Vector3::new(rows[0][bj], rows[1][bj], rows[2][bj]),
-    ];
+    let lines = [row, Vector3::new(rows[0][bj], rows[1][bj], rows[2][bj])];
 
     // --- World-side orthonormal frame of the triangle: (edge 12, in-plane, normal) ----------
     let u1 = d12 * (1.0 / a12r.sqrt());
