@@ -390,7 +390,7 @@ fn solve_into(
             a: [a12, a13, a23],
             b: [b12, b13, b23],
         },
-        half_a_sum: 0.5 * (a12 + a13 + a23),
+        a_sum: a12 + a13 + a23,
         scale: a_max.sqrt(),
     };
 
@@ -469,8 +469,8 @@ struct Frame {
     u: [Vector3<f64>; 3],
     /// Normalised distance equations.
     eq: Equations,
-    /// (a12 + a13 + a23) / 2 (normalised).
-    half_a_sum: f64,
+    /// a12 + a13 + a23 (normalised).
+    a_sum: f64,
     /// Length of the longest side (metres): the normalisation.
     scale: f64,
 }
@@ -487,16 +487,18 @@ impl Frame {
         if !(lam.x > 0.0 && lam.y > 0.0 && lam.z > 0.0) {
             return;
         }
-        // Fix the scale by the sum of the three distance equations (well conditioned:
-        // every term is non-negative); half of it on both sides.
-        let [b12, b13, b23] = self.eq.b;
-        let half_q_sum = (lam.x * lam.x + lam.y * lam.y + lam.z * lam.z)
-            - (b12 * lam.x * lam.y + b13 * lam.x * lam.z + b23 * lam.y * lam.z);
-        if !positive(half_q_sum) {
+        // Fix the scale s by the sum of the three distance equations (well conditioned:
+        // every term is non-negative); the residuals at the scaled ranges follow from the
+        // same quadratic forms.
+        let q = self.eq.forms(&lam);
+        let q_sum = q[0] + q[1] + q[2];
+        if !positive(q_sum) {
             return;
         }
-        lam *= (self.half_a_sum / half_q_sum).sqrt();
-        let Some(lam) = self.eq.refine(lam) else {
+        let s2 = self.a_sum / q_sum;
+        let [a12, a13, a23] = self.eq.a;
+        let residual = [s2 * q[0] - a12, s2 * q[1] - a13, s2 * q[2] - a23];
+        let Some(lam) = self.eq.refine(lam * s2.sqrt(), residual) else {
             return;
         };
         if !(lam.x > 0.0 && lam.y > 0.0 && lam.z > 0.0) {
@@ -552,27 +554,36 @@ struct Equations {
 }
 
 impl Equations {
+    /// The left-hand sides of the three equations (quadratic forms in the ranges).
+    #[inline(always)]
+    fn forms(&self, l: &Vector3<f64>) -> [f64; 3] {
+        let [b12, b13, b23] = self.b;
+        let (xx, yy, zz) = (l.x * l.x, l.y * l.y, l.z * l.z);
+        [
+            xx + yy - 2.0 * b12 * l.x * l.y,
+            xx + zz - 2.0 * b13 * l.x * l.z,
+            yy + zz - 2.0 * b23 * l.y * l.z,
+        ]
+    }
+
     /// Residuals of the three equations.
     #[inline(always)]
     fn residual(&self, l: &Vector3<f64>) -> [f64; 3] {
         let [a12, a13, a23] = self.a;
-        let [b12, b13, b23] = self.b;
-        [
-            l.x * l.x + l.y * l.y - 2.0 * b12 * l.x * l.y - a12,
-            l.x * l.x + l.z * l.z - 2.0 * b13 * l.x * l.z - a13,
-            l.y * l.y + l.z * l.z - 2.0 * b23 * l.y * l.z - a23,
-        ]
+        let [q12, q13, q23] = self.forms(l);
+        [q12 - a12, q13 - a13, q23 - a23]
     }
 
     /// At most [`REFINE_STEPS`] Newton steps on the three equations (closed-form inverse of
-    /// the sparse Jacobian), stopping once converged. Returns `None` if the ranges do not
-    /// satisfy the equations to [`MAX_RESIDUAL`].
+    /// the sparse Jacobian) from ranges `l` with residuals `residual`, stopping once
+    /// converged. Returns `None` if the ranges do not satisfy the equations to
+    /// [`MAX_RESIDUAL`].
     #[inline(always)]
-    fn refine(&self, mut l: Vector3<f64>) -> Option<Vector3<f64>> {
+    fn refine(&self, mut l: Vector3<f64>, mut residual: [f64; 3]) -> Option<Vector3<f64>> {
         let [b12, b13, b23] = self.b;
         let mut step_count = 0;
         loop {
-            let [r1, r2, r3] = self.residual(&l);
+            let [r1, r2, r3] = residual;
             // Each test is false for NaN.
             let within = |tol: f64| r1.abs() <= tol && r2.abs() <= tol && r3.abs() <= tol;
             if within(REFINE_CONVERGED) {
@@ -600,6 +611,7 @@ impl Equations {
                 return within(MAX_RESIDUAL).then_some(l);
             }
             l += step;
+            residual = self.residual(&l);
         }
     }
 }
