@@ -262,9 +262,8 @@ fn solve_into(
     let (s12, s13, s23) = (1.0 - b12 * b12, 1.0 - b13 * b13, 1.0 - b23 * b23);
     // 1 − b² cannot resolve the tiny angles of the parallel-bearing guard: below
     // SMALL_SINE2 the guard uses the cross products (exact for small angles).
-    if !(s12 > SMALL_SINE2 && s13 > SMALL_SINE2 && s23 > SMALL_SINE2)
-        && !bearings_apart(&y1, &y2, &y3)
-    {
+    let clearly_apart = s12 > SMALL_SINE2 && s13 > SMALL_SINE2 && s23 > SMALL_SINE2;
+    if !clearly_apart && !bearings_apart(&y1, &y2, &y3) {
         return;
     }
     let [x1, x2, x3] = points_in_world;
@@ -319,7 +318,8 @@ fn solve_into(
             let inv = 1.0 / p3;
             let gamma = outer_real_root(-p2 * inv, p1 * inv, -p0 * inv);
             // Also rejects NaN: a root beyond the bound is a failed iteration.
-            if !(gamma.abs() <= MAX_PENCIL_ROOT) {
+            let bounded = gamma.abs() <= MAX_PENCIL_ROOT;
+            if !bounded {
                 return;
             }
             // D0 = D1 + γ D2; on a line of D0, D1 = −γ D2: restrict the better-scaled one.
