@@ -352,7 +352,8 @@ fn solve_into(
     } else {
         (nzz, Vector3::new(adj0.xz, adj0.yz, adj0.zz))
     };
-    // pkk ≤ 0 (a slightly positive m was clamped): a double line, D0 = l lᵀ.
+    // pkk ≤ 0 (adj D0 vanishes, or m is positive within the tolerance): a double line,
+    // D0 = ±l lᵀ, and p = 0.
     let double_line = !positive(pkk);
     let p = if double_line {
         Vector3::zeros()
@@ -372,7 +373,7 @@ fn solve_into(
     let bj = argmax3(row.x.abs(), row.y.abs(), row.z.abs());
     // D0 = 0 would mean a vanishing pencil. Everything here is finite: the normalised aᵢⱼ,
     // bᵢⱼ, sᵢⱼ are at most 1 in magnitude and |γ| ≤ MAX_PENCIL_ROOT, so D0, its adjugate, p
-    // and C are bounded far below overflow.
+    // and the rows are bounded far below overflow.
     if !positive(row_max[bi]) {
         return;
     }
