@@ -1,17 +1,19 @@
 //! One real root of a real monic cubic, found without trigonometry.
 //!
 //! Used by [`super::p3p`] (Lambda Twist) to find a degenerate member of a pencil of conics.
-//! The root is bracketed from the critical points of the cubic so that Newton's method
-//! converges monotonically from the first step; no `acos`/`cos` is needed and `cbrt` only
-//! in the rare case where the cubic term dominates the starting estimate.
+//! The start is placed beyond the root from the nearest critical point (or from the
+//! inflection point of a monotone cubic) using the exact expansion of the cubic about that
+//! point, and Halley's method (cubic convergence) polishes it, typically in three steps.
+//! No `acos`/`cos`/`cbrt` call is needed: the cube root that enters the start is a
+//! bit-level estimate (3 % error), enough for a starting point.
 
-/// Most Newton steps taken on the cubic. Convergence is monotone and quadratic for simple
-/// roots (typically 3–6 steps); the cap only bounds the linear convergence at a multiple root.
-const MAX_NEWTON_STEPS: usize = 40;
+/// Most Halley steps taken on the cubic. Convergence is cubic for simple roots (typically
+/// three steps); the cap only bounds the linear convergence at a multiple root.
+const MAX_HALLEY_STEPS: usize = 40;
 
-/// Relative step size below which the Newton iteration has converged: convergence is
-/// quadratic, so after a step of relative size 1e-9 the error is at rounding level.
-const NEWTON_REL_STEP: f64 = 1e-9;
+/// Relative step size below which the Halley iteration has converged: convergence is
+/// cubic, so after a step of relative size 1e-6 the error is at rounding level.
+const HALLEY_REL_STEP: f64 = 1e-6;
 
 /// `t³ + b t² + c t + d`.
 #[inline(always)]
@@ -19,83 +21,77 @@ fn eval(b: f64, c: f64, d: f64, t: f64) -> f64 {
     ((t + b) * t + c) * t + d
 }
 
+/// A rough cube root (relative error below 3.2 %) of a finite `x ≥ 0`, from the bits of
+/// the float: dividing the biased exponent (and mantissa) by three. Only a starting point.
+#[inline(always)]
+fn rough_cbrt(x: f64) -> f64 {
+    f64::from_bits(x.to_bits() / 3 + 0x2A9F_7893_782D_A1CE)
+}
+
 /// The largest real root of `t³ + b t² + c t + d` when the cubic has three real roots, else
-/// its only real root. All inputs finite gives a finite output.
+/// its only real root. All inputs finite gives a finite output, unless the cubic
+/// overflows (then the result is not finite, and the caller must check it).
 ///
-/// The start is placed on the far side of the root from the nearest critical point, where
-/// the cubic does not change convexity, using the exact expansion about that point
-/// (`f(t₀ + δ) = f(t₀) ± g δ² + δ³`): the smaller of the quadratic and the cubic estimates
-/// of `δ` over-shoots the root by at most a factor of two, and Newton's method then
-/// converges monotonically.
-#[inline]
+/// The start uses the exact expansion about the nearest critical point `t₀`
+/// (`f(t₀ + δ) = f(t₀) ± g δ² + δ³`): `δ² (g + |δ|) = |f(t₀)|`, estimated by
+/// `δ = √(|f(t₀)| / (g + ∛|f(t₀)|))` (exact when either term dominates, within 6 %
+/// otherwise); for a monotone cubic, about the inflection point
+/// (`f(tᵢ + s) = k + m s + s³`), `s = k / (m + ∛k²)`.
+#[inline(always)]
 pub(crate) fn outer_real_root(b: f64, c: f64, d: f64) -> f64 {
     let disc = b * b - 3.0 * c;
     let t0 = if disc > 0.0 {
         // Two critical points (-b ∓ g) / 3; f''/2 there is ∓g.
         let g = disc.sqrt();
-        let t_min = (-b + g) / 3.0;
+        let t_min = (-b + g) * (1.0 / 3.0);
         let f_min = eval(b, c, d, t_min);
         if f_min <= 0.0 {
             // The largest root lies to the right of the local minimum.
             let k = -f_min;
-            let delta = if k <= g * g * g {
-                (k / g).sqrt()
-            } else {
-                k.cbrt()
-            };
-            t_min + delta
+            t_min + (k / (g + rough_cbrt(k))).sqrt()
         } else {
             // The local maximum is positive too: one real root, left of the local maximum.
-            let t_max = (-b - g) / 3.0;
-            let k = eval(b, c, d, t_max);
-            let delta = if k <= g * g * g {
-                (k / g).sqrt()
-            } else {
-                k.cbrt()
-            };
-            t_max - delta
+            let t_max = (-b - g) * (1.0 / 3.0);
+            let k = eval(b, c, d, t_max).max(0.0);
+            t_max - (k / (g + rough_cbrt(k))).sqrt()
         }
     } else {
         // Monotone cubic: expand about the inflection point, f(tᵢ + s) = k + m s + s³.
-        let t_inf = -b / 3.0;
+        let t_inf = -b * (1.0 / 3.0);
         let k = eval(b, c, d, t_inf);
-        if k == 0.0 {
-            return t_inf;
-        }
-        let m = -disc / 3.0;
+        let m = -disc * (1.0 / 3.0);
         let ka = k.abs();
-        let delta = if ka * ka <= m * m * m {
-            ka / m
-        } else {
-            ka.cbrt()
-        };
-        t_inf - delta.copysign(k)
+        let r = rough_cbrt(ka);
+        t_inf - (ka / (m + r * r)).copysign(k)
     };
-    newton(b, c, d, t0)
+    halley(b, c, d, t0)
 }
 
-/// Newton's method on the cubic from `t`, stopping at convergence or at a zero slope.
-#[inline]
-fn newton(b: f64, c: f64, d: f64, mut t: f64) -> f64 {
-    for _ in 0..MAX_NEWTON_STEPS {
+/// Halley's method on the cubic from `t`, stopping at convergence or at a non-finite step
+/// (zero denominator).
+#[inline(always)]
+fn halley(b: f64, c: f64, d: f64, mut t: f64) -> f64 {
+    // The Halley step at t, or None where it is not finite (zero denominator).
+    let step_at = |t: f64| {
         let f = eval(b, c, d, t);
         let df = (3.0 * t + 2.0 * b) * t + c;
-        if f == 0.0 || df == 0.0 {
+        // Half the second derivative.
+        let h = 3.0 * t + b;
+        let step = f * df / (df * df - f * h);
+        step.is_finite().then_some(step)
+    };
+    // The start is never within HALLEY_REL_STEP of the root in practice: the first step
+    // is taken without the convergence test.
+    match step_at(t) {
+        Some(step) => t -= step,
+        None => return t,
+    }
+    for _ in 1..MAX_HALLEY_STEPS {
+        let Some(step) = step_at(t) else {
             break;
-        }
-        let step = f / df;
-        if !step.is_finite() {
-            break;
-        }
+        };
         t -= step;
-        if step.abs() <= NEWTON_REL_STEP * t.abs() {
-            // One more (cheap) step gives full precision at a simple root.
-            let f = eval(b, c, d, t);
-            let df = (3.0 * t + 2.0 * b) * t + c;
-            let step = f / df;
-            if step.is_finite() {
-                t -= step;
-            }
+        if step.abs() <= HALLEY_REL_STEP * t.abs() {
             break;
         }
     }

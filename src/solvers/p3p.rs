@@ -10,15 +10,20 @@
 //!
 //! Writing `Λ = (λ₁, λ₂, λ₃)` and `Mᵢⱼ` for the quadratic form of the left-hand side, the
 //! scale-free conics `D₁ = a₂₃M₁₂ − a₁₂M₂₃` and `D₂ = a₂₃M₁₃ − a₁₃M₂₃` satisfy
-//! `ΛᵀD₁Λ = ΛᵀD₂Λ = 0`. A real root `γ` of the cubic `det(D₁ + γD₂) = 0` gives a degenerate
-//! conic `D₀ = D₁ + γD₂`, a pair of lines through every solution. Its eigen-decomposition
-//! `D₀ = σ₁e₁e₁ᵀ + σ₂e₂e₂ᵀ` (σ₁σ₂ ≤ 0) splits it into the lines
-//! `(√|σ₁| e₁ ± √|σ₂| e₂)·Λ = 0`; on each line the other conic leaves a quadratic in the
-//! ratio of two ranges, and one distance equation fixes the scale. No quartic is solved.
-//! The ranges are then polished by Gauss-Newton (Newton) steps on the three distance
-//! equations, and the pose follows from the two congruent triangles: the rotation maps the
-//! orthonormal frame (edge 12, in-plane normal, plane normal) of the rig-frame triangle
-//! `λᵢyᵢ` onto that of the world triangle `xᵢ`, and the rig origin is `x₁ − R λ₁y₁`.
+//! `ΛᵀD₁Λ = ΛᵀD₂Λ = 0`. A real root `γ` of the cubic `det(D₁ + γD₂) = 0` (its coefficients
+//! in closed form in `aᵢⱼ`, `bᵢⱼ` and `sᵢⱼ = 1 − bᵢⱼ²`, as in the paper; the root by
+//! Halley's method, see `cubic.rs`) gives a degenerate conic `D₀ = D₁ + γD₂`, a pair of
+//! lines `l`, `m` through every solution: `D₀ = ½(l mᵀ + m lᵀ)`. It is split without an
+//! eigen-decomposition: `adj D₀ = −p pᵀ` with `p = ½ l × m`, so `p` is a column of the
+//! adjugate over the square root of its diagonal entry, and `D₀ + [p]ₓ = l mᵀ` has rank one:
+//! its row and column through its largest entry are the two lines (`σ₁σ₂ = tr adj D₀ ≤ 0`
+//! for a real pair). On each line the other conic leaves a homogeneous quadratic in two
+//! ranges, and the sum of the three distance equations fixes the scale. No quartic is
+//! solved. The ranges are then polished by Gauss-Newton (Newton) steps on the three
+//! distance equations when their residual is not already negligible, and the pose follows
+//! from the two congruent triangles: the rotation maps the orthonormal frame (edge 12,
+//! in-plane normal, plane normal) of the rig-frame triangle `λᵢyᵢ` onto that of the world
+//! triangle `xᵢ`, and the rig origin is `x₁ − R λ₁y₁`.
 //!
 //! # Omnidirectional bearings
 //! Nothing in the method assumes a bearing in front of a pinhole: only the dot products
@@ -57,6 +62,13 @@ const CUBIC_LEADING_TOL: f64 = 1e-14;
 /// Relative tolerance below which a (slightly) negative quadratic discriminant is treated
 /// as a double root, and a (slightly) positive eigenvalue product as a double line.
 const DISCRIMINANT_TOL: f64 = 1e-12;
+
+/// Largest accepted magnitude of the root γ of the pencil's cubic. With the normalised
+/// coefficients (|aᵢⱼ|, |bᵢⱼ|, sᵢⱼ ≤ 1) and the leading coefficient at least
+/// [`CUBIC_LEADING_TOL`] times the others, every root satisfies |γ| < 1 + 1e14 (Cauchy's
+/// bound); anything beyond this is a failed iteration. It also bounds D0 and what follows,
+/// so no later overflow is possible.
+const MAX_PENCIL_ROOT: f64 = 1e20;
 
 /// Most Newton steps on the distance equations (the paper uses a few Gauss-Newton steps;
 /// the closed-form ranges are usually accurate to 1e-12 or better, so one step suffices).
@@ -103,51 +115,6 @@ impl Sym3 {
             + self.zz * o.zz
             + 2.0 * (self.xy * o.xy + self.xz * o.xz + self.yz * o.yz)
     }
-
-    /// Determinant, from a precomputed adjugate.
-    #[inline(always)]
-    fn det_with(&self, adj: &Self) -> f64 {
-        self.xx * adj.xx + self.xy * adj.xy + self.xz * adj.xz
-    }
-
-    /// `self + s · o`.
-    #[inline(always)]
-    fn add_scaled(&self, s: f64, o: &Self) -> Self {
-        Self {
-            xx: self.xx + s * o.xx,
-            xy: self.xy + s * o.xy,
-            xz: self.xz + s * o.xz,
-            yy: self.yy + s * o.yy,
-            yz: self.yz + s * o.yz,
-            zz: self.zz + s * o.zz,
-        }
-    }
-
-    /// `self · v`.
-    #[inline(always)]
-    fn mul(&self, v: &Vector3<f64>) -> Vector3<f64> {
-        Vector3::new(
-            self.xx * v.x + self.xy * v.y + self.xz * v.z,
-            self.xy * v.x + self.yy * v.y + self.yz * v.z,
-            self.xz * v.x + self.yz * v.y + self.zz * v.z,
-        )
-    }
-
-    /// Column `k` (0, 1 or 2).
-    #[inline(always)]
-    fn col(&self, k: usize) -> Vector3<f64> {
-        match k {
-            0 => Vector3::new(self.xx, self.xy, self.xz),
-            1 => Vector3::new(self.xy, self.yy, self.yz),
-            _ => Vector3::new(self.xz, self.yz, self.zz),
-        }
-    }
-
-    /// The diagonal.
-    #[inline(always)]
-    fn diag(&self) -> Vector3<f64> {
-        Vector3::new(self.xx, self.yy, self.zz)
-    }
 }
 
 /// `x > 0`, false for NaN: the guard form used before every square root and division.
@@ -159,7 +126,12 @@ fn positive(x: f64) -> bool {
 /// Index of the entry of largest magnitude.
 #[inline(always)]
 fn argmax_abs(v: &Vector3<f64>) -> usize {
-    let (a, b, c) = (v.x.abs(), v.y.abs(), v.z.abs());
+    argmax3(v.x.abs(), v.y.abs(), v.z.abs())
+}
+
+/// Index (0, 1 or 2) of the largest of three numbers, the first on ties.
+#[inline(always)]
+fn argmax3(a: f64, b: f64, c: f64) -> usize {
     if a >= b {
         if a >= c { 0 } else { 2 }
     } else if b >= c {
@@ -169,21 +141,51 @@ fn argmax_abs(v: &Vector3<f64>) -> usize {
     }
 }
 
-/// The unit vector along `v`, or `None` if `v` is zero or not finite. Rescales vectors
-/// whose squared norm would under- or overflow.
+/// Squared norms accepted by the fast normalisation (no under- or overflow).
+const FAST_NORM2_RANGE: (f64, f64) = (1e-280, 1e280);
+
+/// The smaller of two numbers (plain comparison: no NaN handling, the callers check).
 #[inline(always)]
-fn unit(v: &Vector3<f64>) -> Option<Vector3<f64>> {
-    let n2 = v.norm_squared();
-    if n2 > 1e-280 && n2 < 1e280 {
-        return Some(v * (1.0 / n2.sqrt()));
-    }
-    let m = v.amax();
-    if !(m > 0.0 && m.is_finite()) {
-        return None;
-    }
-    let w = v / m;
-    let n = w.norm();
-    Some(w / n)
+fn min2(a: f64, b: f64) -> f64 {
+    if a < b { a } else { b }
+}
+
+/// The larger of two numbers (plain comparison: no NaN handling, the callers check).
+#[inline(always)]
+fn max2(a: f64, b: f64) -> f64 {
+    if a > b { a } else { b }
+}
+
+/// Squared sine above which 1 − b² (b the cosine of unit bearings) is accurate enough to
+/// show that a pair of bearings passes the [`MIN_BEARING_SINE`] guard.
+const SMALL_SINE2: f64 = 1e-6;
+
+/// The parallel-bearing guard from cross products: every pair of unit bearings at a sine
+/// above [`MIN_BEARING_SINE`]. The slow path for nearly (anti)parallel pairs.
+#[cold]
+#[inline(never)]
+fn bearings_apart(y1: &Vector3<f64>, y2: &Vector3<f64>, y3: &Vector3<f64>) -> bool {
+    let min_sin2 = MIN_BEARING_SINE * MIN_BEARING_SINE;
+    y1.cross(y2).norm_squared() > min_sin2
+        && y1.cross(y3).norm_squared() > min_sin2
+        && y2.cross(y3).norm_squared() > min_sin2
+}
+
+/// The three unit bearings, rescaling vectors whose squared norm would under- or overflow;
+/// `None` if one is zero or not finite. The slow path of the normalisation.
+#[cold]
+#[inline(never)]
+fn units_rescaled(v: &[Vector3<f64>; 3]) -> Option<[Vector3<f64>; 3]> {
+    let unit = |v: &Vector3<f64>| {
+        let m = v.amax();
+        if !(m > 0.0 && m.is_finite()) {
+            return None;
+        }
+        let w = v / m;
+        let n = w.norm();
+        Some(w / n)
+    };
+    Some([unit(&v[0])?, unit(&v[1])?, unit(&v[2])?])
 }
 
 /// Every pose of a rig that sees three world points along three bearings (P3P), by the
@@ -227,21 +229,42 @@ pub fn p3p(
     points_in_world: &[Vector3<f64>; 3],
 ) -> PoseSolutions {
     let mut solutions = PoseSolutions::new();
+    solve_into(bearings_in_rig, points_in_world, &mut solutions);
+    solutions
+}
 
+/// The body of [`p3p`], pushing every solution into `solutions`.
+#[inline(always)]
+fn solve_into(
+    bearings_in_rig: &[Vector3<f64>; 3],
+    points_in_world: &[Vector3<f64>; 3],
+    solutions: &mut PoseSolutions,
+) {
     // --- Input checks and normalisation -------------------------------------------------
-    let (Some(y1), Some(y2), Some(y3)) = (
-        unit(&bearings_in_rig[0]),
-        unit(&bearings_in_rig[1]),
-        unit(&bearings_in_rig[2]),
-    ) else {
-        return solutions;
+    let [r1, r2, r3] = bearings_in_rig;
+    let (n1, n2, n3) = (r1.norm_squared(), r2.norm_squared(), r3.norm_squared());
+    // All three within FAST_NORM2_RANGE; a NaN or infinity makes the sum fail the test.
+    let fast = min2(min2(n1, n2), n3) > FAST_NORM2_RANGE.0 && n1 + n2 + n3 < FAST_NORM2_RANGE.1;
+    let [y1, y2, y3] = if fast {
+        [
+            r1 * (1.0 / n1.sqrt()),
+            r2 * (1.0 / n2.sqrt()),
+            r3 * (1.0 / n3.sqrt()),
+        ]
+    } else {
+        match units_rescaled(bearings_in_rig) {
+            Some(ys) => ys,
+            None => return,
+        }
     };
-    let min_sin2 = MIN_BEARING_SINE * MIN_BEARING_SINE;
-    if !(y1.cross(&y2).norm_squared() > min_sin2
-        && y1.cross(&y3).norm_squared() > min_sin2
-        && y2.cross(&y3).norm_squared() > min_sin2)
-    {
-        return solutions;
+    let (b12, b13, b23) = (y1.dot(&y2), y1.dot(&y3), y2.dot(&y3));
+    // Squared sines of the angles between the bearings, the sᵢⱼ of the cubic below.
+    let (s12, s13, s23) = (1.0 - b12 * b12, 1.0 - b13 * b13, 1.0 - b23 * b23);
+    // 1 − b² cannot resolve the tiny angles of the parallel-bearing guard: below
+    // SMALL_SINE2 the guard uses the cross products (exact for small angles).
+    let clearly_apart = s12 > SMALL_SINE2 && s13 > SMALL_SINE2 && s23 > SMALL_SINE2;
+    if !clearly_apart && !bearings_apart(&y1, &y2, &y3) {
+        return;
     }
     let [x1, x2, x3] = points_in_world;
     let d12 = x1 - x2;
@@ -250,19 +273,20 @@ pub fn p3p(
     let (a12r, a13r, a23r) = (d12.norm_squared(), d13.norm_squared(), d23.norm_squared());
     let normal = d12.cross(&d13);
     let nn = normal.norm_squared();
-    let a_max = a12r.max(a13r).max(a23r);
-    // Also rejects NaN and infinite points (the comparisons are then false).
+    let a_max = max2(max2(a12r, a13r), a23r);
+    // Also rejects NaN and infinite points: a non-finite coordinate makes the normal (a
+    // cross product of the differences) non-finite, and the comparisons false.
     if !(nn.is_finite()
         && a_max.is_finite()
         && nn > MIN_TRIANGLE_SHAPE * MIN_TRIANGLE_SHAPE * a_max * a_max)
     {
-        return solutions;
+        return;
     }
     let inv_a = 1.0 / a_max;
     let (a12, a13, a23) = (a12r * inv_a, a13r * inv_a, a23r * inv_a);
-    let (b12, b13, b23) = (y1.dot(&y2), y1.dot(&y3), y2.dot(&y3));
 
     // --- The pencil of conics and one degenerate member -----------------------------------
+    // D1 = a23 M12 − a12 M23 and D2 = a23 M13 − a13 M23 (see the module documentation).
     let d1 = Sym3 {
         xx: a23,
         xy: -a23 * b12,
@@ -279,197 +303,249 @@ pub fn p3p(
         yz: a13 * b23,
         zz: a23 - a13,
     };
-    let adj1 = d1.adj();
-    let adj2 = d2.adj();
-    // det(D1 + γ D2) = c3 γ³ + c2 γ² + c1 γ + c0.
-    let c3 = d2.det_with(&adj2);
-    let c2 = d1.inner(&adj2);
-    let c1 = adj1.inner(&d2);
-    let c0 = d1.det_with(&adj1);
+    // det(D1 + γ D2) = −a23 (p3 γ³ − p2 γ² + p1 γ − p0), expanded in closed form with
+    // sᵢⱼ = 1 − bᵢⱼ² (Persson & Nordberg's coefficients).
+    let blob = b12 * b13 * b23 - 1.0;
+    let p3 = a13 * (a23 * s13 - a13 * s23);
+    let p2 = 2.0 * blob * a23 * a13 + a13 * (2.0 * a12 + a13) * s23 + a23 * (a23 - a12) * s13;
+    let p1 = a23 * (a13 - a23) * s12 - a12 * a12 * s23 - 2.0 * a12 * (blob * a23 + a13 * s23);
+    let p0 = a12 * (a12 * s23 - a23 * s12);
     let (d0, restrict) =
-        if c3.abs() <= CUBIC_LEADING_TOL * (c0.abs() + c1.abs() + c2.abs()) || c3 == 0.0 {
+        if p3.abs() <= CUBIC_LEADING_TOL * (p0.abs() + p1.abs() + p2.abs()) || p3 == 0.0 {
             // Root at infinity: D2 is (numerically) degenerate itself.
             (d2, d1)
         } else {
-            let inv = 1.0 / c3;
-            let gamma = outer_real_root(c2 * inv, c1 * inv, c0 * inv);
-            if !gamma.is_finite() {
-                return solutions;
+            let inv = 1.0 / p3;
+            let gamma = outer_real_root(-p2 * inv, p1 * inv, -p0 * inv);
+            // Also rejects NaN: a root beyond the bound is a failed iteration.
+            let bounded = gamma.abs() <= MAX_PENCIL_ROOT;
+            if !bounded {
+                return;
             }
-            // On a line of D0, D1 = −γ D2: restrict the better-scaled one.
-            (
-                d1.add_scaled(gamma, &d2),
-                if gamma.abs() >= 1.0 { d1 } else { d2 },
-            )
+            // D0 = D1 + γ D2; on a line of D0, D1 = −γ D2: restrict the better-scaled one.
+            let d0 = Sym3 {
+                xx: a23 + gamma * a23,
+                xy: d1.xy,
+                xz: gamma * d2.xz,
+                yy: d1.yy - gamma * a13,
+                yz: d1.yz + gamma * d2.yz,
+                zz: gamma * d2.zz - a12,
+            };
+            (d0, if gamma.abs() >= 1.0 { d1 } else { d2 })
         };
 
-    // --- Eigen-decomposition of the rank-2 D0 -----------------------------------------------
-    // Characteristic polynomial σ(σ² − tσ + m) with t the trace and m the sum of the
-    // principal 2×2 minors (= σ₁σ₂).
-    let t = d0.xx + d0.yy + d0.zz;
+    // --- Split the degenerate conic D0 into its two lines ----------------------------------
+    // For D0 = ½(l mᵀ + m lᵀ) (l, m the lines), adj D0 = −p pᵀ with p = ½ l × m their
+    // intersection, and D0 + [p]ₓ = l mᵀ (for one sign of p): any non-zero row of it is m,
+    // any non-zero column l. adj D0 = σ₁σ₂ e₃e₃ᵀ, so its trace σ₁σ₂ must be ≤ 0.
     let adj0 = d0.adj();
-    let scale2 = d0.inner(&d0);
-    let mut m = adj0.xx + adj0.yy + adj0.zz;
-    if m > DISCRIMINANT_TOL * scale2 {
+    let m = adj0.xx + adj0.yy + adj0.zz;
+    if m > DISCRIMINANT_TOL * d0.inner(&d0) {
         // A complex-conjugate line pair: no real line through a solution.
-        return solutions;
+        return;
     }
-    m = m.min(0.0);
-    let sigma1 = 0.5 * t + (0.25 * t * t - m).sqrt().copysign(t);
-    if !positive(sigma1.abs()) {
-        return solutions;
-    }
-    let sigma2 = m / sigma1;
-    // Spectral projector of σ₁: P = σ₁e₁e₁ᵀ = (D0² − σ₂D0)/(σ₁ − σ₂); Q = D0 − P = σ₂e₂e₂ᵀ.
-    let gap = sigma1 - sigma2;
-    let d0sq = Sym3 {
-        xx: d0.col(0).norm_squared(),
-        xy: d0.col(0).dot(&d0.col(1)),
-        xz: d0.col(0).dot(&d0.col(2)),
-        yy: d0.col(1).norm_squared(),
-        yz: d0.col(1).dot(&d0.col(2)),
-        zz: d0.col(2).norm_squared(),
-    };
-    let inv_gap = 1.0 / gap;
-    let p = d0sq.add_scaled(-sigma2, &d0);
-    let p = Sym3 {
-        xx: p.xx * inv_gap,
-        xy: p.xy * inv_gap,
-        xz: p.xz * inv_gap,
-        yy: p.yy * inv_gap,
-        yz: p.yz * inv_gap,
-        zz: p.zz * inv_gap,
-    };
-    let q = d0.add_scaled(-1.0, &p);
-    let kp = argmax_abs(&p.diag());
-    let pkk = p.diag()[kp].abs();
-    if !positive(pkk) {
-        return solutions;
-    }
-    // g = √|σ₁| e₁ and h = √|σ₂| e₂ (up to sign).
-    let g = p.col(kp) * (1.0 / pkk.sqrt());
-    let kq = argmax_abs(&q.diag());
-    let qkk = q.diag()[kq].abs();
-    let h = if qkk > 0.0 {
-        q.col(kq) * (1.0 / qkk.sqrt())
+    let (nxx, nyy, nzz) = (-adj0.xx, -adj0.yy, -adj0.zz);
+    let (pkk, pcol) = if nxx >= nyy && nxx >= nzz {
+        (nxx, Vector3::new(adj0.xx, adj0.xy, adj0.xz))
+    } else if nyy >= nzz {
+        (nyy, Vector3::new(adj0.xy, adj0.yy, adj0.yz))
     } else {
-        Vector3::zeros()
+        (nzz, Vector3::new(adj0.xz, adj0.yz, adj0.zz))
     };
-    if !(crate::geometry::is_finite(&g) && crate::geometry::is_finite(&h)) {
-        return solutions;
+    // pkk ≤ 0 (adj D0 vanishes, or m is positive within the tolerance): a double line,
+    // D0 = ±l lᵀ, and p = 0.
+    let double_line = !positive(pkk);
+    let p = if double_line {
+        Vector3::zeros()
+    } else {
+        pcol * (1.0 / pkk.sqrt())
+    };
+    let rows = [
+        Vector3::new(d0.xx, d0.xy - p.z, d0.xz + p.y),
+        Vector3::new(d0.xy + p.z, d0.yy, d0.yz - p.x),
+        Vector3::new(d0.xz - p.y, d0.yz + p.x, d0.zz),
+    ];
+    // The entry of largest magnitude, (bi, bj): its row and its column are the best
+    // conditioned representatives of the two lines.
+    let row_max = rows.map(|r| max2(max2(r.x.abs(), r.y.abs()), r.z.abs()));
+    let bi = argmax3(row_max[0], row_max[1], row_max[2]);
+    let row = rows[bi];
+    let bj = argmax3(row.x.abs(), row.y.abs(), row.z.abs());
+    // D0 = 0 would mean a vanishing pencil. Everything here is finite: the normalised aᵢⱼ,
+    // bᵢⱼ, sᵢⱼ are at most 1 in magnitude and |γ| ≤ MAX_PENCIL_ROOT, so D0, its adjugate, p
+    // and the rows are bounded far below overflow.
+    if !positive(row_max[bi]) {
+        return;
     }
+    let lines = [row, Vector3::new(rows[0][bj], rows[1][bj], rows[2][bj])];
 
     // --- World-side orthonormal frame of the triangle: (edge 12, in-plane, normal) ----------
     let u1 = d12 * (1.0 / a12r.sqrt());
     let u3 = normal * (1.0 / nn.sqrt());
     let u2 = u3.cross(&u1);
-    let ys = [y1, y2, y3];
-    let eq = Equations {
-        a: [a12, a13, a23],
-        b: [b12, b13, b23],
+    let frame = Frame {
+        ys: [y1, y2, y3],
+        x1: *x1,
+        u: [u1, u2, u3],
+        eq: Equations {
+            a: [a12, a13, a23],
+            b: [b12, b13, b23],
+        },
+        a_sum: a12 + a13 + a23,
+        scale: a_max.sqrt(),
     };
-    // The longest side (normalised length 1) fixes the scale.
-    let (si, sj, sb) = if a12 >= a13 && a12 >= a23 {
-        (0, 1, b12)
-    } else if a13 >= a23 {
-        (0, 2, b13)
-    } else {
-        (1, 2, b23)
-    };
-    let scale = a_max.sqrt();
 
-    let n_lines = if h == Vector3::zeros() { 1 } else { 2 };
-    for line in 0..n_lines {
-        let u = if line == 0 { g + h } else { g - h };
+    let n_lines = if double_line { 1 } else { 2 };
+    for u in &lines[..n_lines] {
         // The plane u·Λ = 0 meets the open positive octant only if u has entries of both
         // signs: skip lines that cannot carry positive ranges.
-        let (lo, hi) = (u.x.min(u.y).min(u.z), u.x.max(u.y).max(u.z));
-        if !(lo < 0.0 && hi > 0.0) {
+        let any_neg = u.x < 0.0 || u.y < 0.0 || u.z < 0.0;
+        let any_pos = u.x > 0.0 || u.y > 0.0 || u.z > 0.0;
+        if !(any_neg && any_pos) {
             continue;
         }
-        // Two independent vectors spanning the plane u·Λ = 0 (u × eₖ for the two axes k
-        // other than the largest component of u).
-        let (va, vb) = match argmax_abs(&u) {
-            0 => (Vector3::new(-u.z, 0.0, u.x), Vector3::new(u.y, -u.x, 0.0)),
-            1 => (Vector3::new(0.0, u.z, -u.y), Vector3::new(u.y, -u.x, 0.0)),
-            _ => (Vector3::new(0.0, u.z, -u.y), Vector3::new(-u.z, 0.0, u.x)),
+        // Λ = α va + β vb spans the plane u·Λ = 0, with va = uₖeᵢ − uᵢeₖ and
+        // vb = uₖeⱼ − uⱼeₖ for k the largest entry of u and (i, j) the other two axes.
+        // On the other conic R: A α² + 2B αβ + C β² = 0, with (rᵢⱼ the entries of R)
+        // A = uₖ²rᵢᵢ − 2uₖuᵢrᵢₖ + uᵢ²rₖₖ, B = uₖ²rᵢⱼ − uₖuⱼrᵢₖ − uₖuᵢrⱼₖ + uᵢuⱼrₖₖ,
+        // C = uₖ²rⱼⱼ − 2uₖuⱼrⱼₖ + uⱼ²rₖₖ.
+        let r = &restrict;
+        let (ui, uj, uk, [rii, rjj, rkk, rij, rik, rjk], va, vb) = match argmax_abs(u) {
+            0 => (
+                u.y,
+                u.z,
+                u.x,
+                [r.yy, r.zz, r.xx, r.yz, r.xy, r.xz],
+                Vector3::new(-u.y, u.x, 0.0),
+                Vector3::new(-u.z, 0.0, u.x),
+            ),
+            1 => (
+                u.x,
+                u.z,
+                u.y,
+                [r.xx, r.zz, r.yy, r.xz, r.xy, r.yz],
+                Vector3::new(u.y, -u.x, 0.0),
+                Vector3::new(0.0, -u.z, u.y),
+            ),
+            _ => (
+                u.x,
+                u.y,
+                u.z,
+                [r.xx, r.yy, r.zz, r.xy, r.xz, r.yz],
+                Vector3::new(u.z, 0.0, -u.x),
+                Vector3::new(0.0, u.z, -u.y),
+            ),
         };
-        // Λ = α va + β vb on the other conic: A α² + 2B αβ + C β² = 0.
-        let cva = restrict.mul(&va);
-        let qa = va.dot(&cva);
-        let qb = vb.dot(&cva);
-        let qc = vb.dot(&restrict.mul(&vb));
+        let (kk, ki, kj) = (uk * uk, uk * ui, uk * uj);
+        let qa = kk * rii - 2.0 * ki * rik + ui * ui * rkk;
+        let qb = kk * rij - kj * rik - ki * rjk + ui * uj * rkk;
+        let qc = kk * rjj - 2.0 * kj * rjk + uj * uj * rkk;
         let disc = qb * qb - qa * qc;
         if disc < -DISCRIMINANT_TOL * (qb * qb + (qa * qc).abs()) {
             continue;
         }
         let sq = disc.max(0.0).sqrt();
         let w = -(qb + sq.copysign(qb));
-        // The two roots (α, β) = (w, A) and (C, w), division-free.
-        let roots = [(w, qa), (qc, w)];
-        let n_roots = if sq > 0.0 { 2 } else { 1 };
-        // A double root: keep whichever representation is not (nearly) zero.
-        let first = usize::from(n_roots == 1 && qa.abs() < qc.abs());
-        for &(alpha, beta) in &roots[first..first + n_roots] {
-            let mut lam = va * alpha + vb * beta;
-            // Same sign for all three ranges, else no physical solution.
-            if lam.x < 0.0 {
-                lam = -lam;
-            }
-            if !(lam.x > 0.0 && lam.y > 0.0 && lam.z > 0.0) {
-                continue;
-            }
-            let (li, lj) = (lam[si], lam[sj]);
-            let side2 = li * li + lj * lj - 2.0 * sb * li * lj;
-            if !positive(side2) {
-                continue;
-            }
-            lam *= 1.0 / side2.sqrt();
-            let Some(lam) = eq.refine(lam) else {
-                continue;
-            };
-            let lam = lam * scale;
-            if !(lam.x > 0.0 && lam.y > 0.0 && lam.z > 0.0) {
-                continue;
-            }
-            // The same frame built from the rig-frame triangle; world_from_rig maps one onto
-            // the other. Built from orthonormal frames, the rotation is orthonormal with
-            // det +1 even when the triangle is thin.
-            let p1 = ys[0] * lam.x;
-            let v1 = p1 - ys[1] * lam.y;
-            let v2 = p1 - ys[2] * lam.z;
-            let v3 = v1.cross(&v2);
-            let (n1, n3) = (v1.norm_squared(), v3.norm_squared());
-            if !(n1 > 0.0 && n3 > 0.0) {
-                continue;
-            }
-            let w1 = v1 * (1.0 / n1.sqrt());
-            let w3 = v3 * (1.0 / n3.sqrt());
-            let w2 = w3.cross(&w1);
-            // world_from_rig = [u1 u2 u3] [w1 w2 w3]ᵀ.
-            let row = |i: usize| {
-                Vector3::new(
-                    u1[i] * w1.x + u2[i] * w2.x + u3[i] * w3.x,
-                    u1[i] * w1.y + u2[i] * w2.y + u3[i] * w3.y,
-                    u1[i] * w1.z + u2[i] * w2.z + u3[i] * w3.z,
-                )
-            };
-            let (q0, q1, q2) = (row(0), row(1), row(2));
-            let origin = x1 - Vector3::new(q0.dot(&p1), q1.dot(&p1), q2.dot(&p1));
-            // One test for all twelve entries: a NaN or infinity makes the sum non-finite
-            // (the entries are bounded, so the sum cannot overflow on its own).
-            let total = q0.sum() + q1.sum() + q2.sum() + origin.sum();
-            if !total.is_finite() {
-                continue;
-            }
-            let rot = Matrix3::from_rows(&[q0.transpose(), q1.transpose(), q2.transpose()]);
-            let _ = solutions.try_push(Pose::from_parts(
-                Translation3::from(origin),
-                Rotation3::from_matrix_unchecked(rot),
-            ));
+        // The two roots (α, β) = (w, A) and (C, w), division-free; a double root keeps
+        // whichever representation is not (nearly) zero.
+        if sq > 0.0 {
+            frame.try_candidate(va * w + vb * qa, solutions);
+            frame.try_candidate(va * qc + vb * w, solutions);
+        } else if qa.abs() >= qc.abs() {
+            frame.try_candidate(va * w + vb * qa, solutions);
+        } else {
+            frame.try_candidate(va * qc + vb * w, solutions);
         }
     }
-    solutions
+}
+
+/// What the candidates of one problem share: the rig-frame bearings, the world triangle's
+/// first point and orthonormal frame, and the normalised distance equations.
+struct Frame {
+    /// Unit bearings.
+    ys: [Vector3<f64>; 3],
+    /// First world point.
+    x1: Vector3<f64>,
+    /// World frame of the triangle: edge 12, in-plane normal, plane normal.
+    u: [Vector3<f64>; 3],
+    /// Normalised distance equations.
+    eq: Equations,
+    /// a12 + a13 + a23 (normalised).
+    a_sum: f64,
+    /// Length of the longest side (metres): the normalisation.
+    scale: f64,
+}
+
+impl Frame {
+    /// Completes a candidate direction of the ranges (any scale and sign) into a pose and
+    /// pushes it, if its ranges are positive and satisfy the distance equations.
+    #[inline(always)]
+    fn try_candidate(&self, mut lam: Vector3<f64>, solutions: &mut PoseSolutions) {
+        // Same sign for all three ranges, else no physical solution.
+        if lam.x < 0.0 {
+            lam = -lam;
+        }
+        if !(lam.x > 0.0 && lam.y > 0.0 && lam.z > 0.0) {
+            return;
+        }
+        // Fix the scale s by the sum of the three distance equations (well conditioned:
+        // every term is non-negative); the residuals at the scaled ranges follow from the
+        // same quadratic forms.
+        let q = self.eq.forms(&lam);
+        let q_sum = q[0] + q[1] + q[2];
+        if !positive(q_sum) {
+            return;
+        }
+        let s2 = self.a_sum / q_sum;
+        let [a12, a13, a23] = self.eq.a;
+        let residual = [s2 * q[0] - a12, s2 * q[1] - a13, s2 * q[2] - a23];
+        let Some(lam) = self.eq.refine(lam * s2.sqrt(), residual) else {
+            return;
+        };
+        if !(lam.x > 0.0 && lam.y > 0.0 && lam.z > 0.0) {
+            return;
+        }
+        // The same frame built from the rig-frame triangle (in normalised units, so that
+        // nothing can overflow); world_from_rig maps one onto the other. Built from
+        // orthonormal frames, the rotation is orthonormal with det +1 even when the
+        // triangle is thin.
+        let [y1, y2, y3] = &self.ys;
+        let p1 = y1 * lam.x;
+        let v1 = p1 - y2 * lam.y;
+        let v2 = p1 - y3 * lam.z;
+        let v3 = v1.cross(&v2);
+        let (n1, n3) = (v1.norm_squared(), v3.norm_squared());
+        if !(n1 > 0.0 && n3 > 0.0) {
+            return;
+        }
+        let w1 = v1 * (1.0 / n1.sqrt());
+        let w3 = v3 * (1.0 / n3.sqrt());
+        let w2 = w3.cross(&w1);
+        let [u1, u2, u3] = &self.u;
+        // world_from_rig = [u1 u2 u3] [w1 w2 w3]ᵀ.
+        let rot = Matrix3::new(
+            u1.x * w1.x + u2.x * w2.x + u3.x * w3.x,
+            u1.x * w1.y + u2.x * w2.y + u3.x * w3.y,
+            u1.x * w1.z + u2.x * w2.z + u3.x * w3.z,
+            u1.y * w1.x + u2.y * w2.x + u3.y * w3.x,
+            u1.y * w1.y + u2.y * w2.y + u3.y * w3.y,
+            u1.y * w1.z + u2.y * w2.z + u3.y * w3.z,
+            u1.z * w1.x + u2.z * w2.x + u3.z * w3.x,
+            u1.z * w1.y + u2.z * w2.y + u3.z * w3.y,
+            u1.z * w1.z + u2.z * w2.z + u3.z * w3.z,
+        );
+        let origin = self.x1 - rot * (p1 * self.scale);
+        // One test for all twelve entries: a NaN or infinity makes the sum non-finite
+        // (the entries are bounded, so the sum cannot overflow on its own).
+        let total = rot.sum() + origin.sum();
+        if !total.is_finite() {
+            return;
+        }
+        let _ = solutions.try_push(Pose::from_parts(
+            Translation3::from(origin),
+            Rotation3::from_matrix_unchecked(rot),
+        ));
+    }
 }
 
 /// The three normalised distance equations `λᵢ² + λⱼ² − 2bᵢⱼλᵢλⱼ = aᵢⱼ`, ordered 12, 13, 23.
@@ -479,33 +555,43 @@ struct Equations {
 }
 
 impl Equations {
+    /// The left-hand sides of the three equations (quadratic forms in the ranges).
+    #[inline(always)]
+    fn forms(&self, l: &Vector3<f64>) -> [f64; 3] {
+        let [b12, b13, b23] = self.b;
+        let (xx, yy, zz) = (l.x * l.x, l.y * l.y, l.z * l.z);
+        [
+            xx + yy - 2.0 * b12 * l.x * l.y,
+            xx + zz - 2.0 * b13 * l.x * l.z,
+            yy + zz - 2.0 * b23 * l.y * l.z,
+        ]
+    }
+
     /// Residuals of the three equations.
     #[inline(always)]
     fn residual(&self, l: &Vector3<f64>) -> [f64; 3] {
         let [a12, a13, a23] = self.a;
-        let [b12, b13, b23] = self.b;
-        [
-            l.x * l.x + l.y * l.y - 2.0 * b12 * l.x * l.y - a12,
-            l.x * l.x + l.z * l.z - 2.0 * b13 * l.x * l.z - a13,
-            l.y * l.y + l.z * l.z - 2.0 * b23 * l.y * l.z - a23,
-        ]
+        let [q12, q13, q23] = self.forms(l);
+        [q12 - a12, q13 - a13, q23 - a23]
     }
 
     /// At most [`REFINE_STEPS`] Newton steps on the three equations (closed-form inverse of
-    /// the sparse Jacobian), stopping once converged. Returns `None` if the ranges do not
-    /// satisfy the equations to [`MAX_RESIDUAL`].
+    /// the sparse Jacobian) from ranges `l` with residuals `residual`, stopping once
+    /// converged. Returns `None` if the ranges do not satisfy the equations to
+    /// [`MAX_RESIDUAL`].
     #[inline(always)]
-    fn refine(&self, mut l: Vector3<f64>) -> Option<Vector3<f64>> {
+    fn refine(&self, mut l: Vector3<f64>, mut residual: [f64; 3]) -> Option<Vector3<f64>> {
         let [b12, b13, b23] = self.b;
         let mut step_count = 0;
         loop {
-            let [r1, r2, r3] = self.residual(&l);
-            let worst = r1.abs().max(r2.abs()).max(r3.abs());
-            if worst <= REFINE_CONVERGED {
+            let [r1, r2, r3] = residual;
+            // Each test is false for NaN.
+            let within = |tol: f64| r1.abs() <= tol && r2.abs() <= tol && r3.abs() <= tol;
+            if within(REFINE_CONVERGED) {
                 return Some(l);
             }
             if step_count == REFINE_STEPS {
-                return (worst <= MAX_RESIDUAL).then_some(l);
+                return within(MAX_RESIDUAL).then_some(l);
             }
             step_count += 1;
             // Half the Jacobian: rows ∂/∂λ of equations 12, 13, 23.
@@ -523,9 +609,10 @@ impl Equations {
                 (x21 * x32 * r1 - x11 * x32 * r2 - x12 * x21 * r3) * k,
             );
             if !crate::geometry::is_finite(&step) {
-                return (worst <= MAX_RESIDUAL).then_some(l);
+                return within(MAX_RESIDUAL).then_some(l);
             }
             l += step;
+            residual = self.residual(&l);
         }
     }
 }
