@@ -81,9 +81,18 @@ pub const EQUIRECTANGULAR_TABLE_MAX_OFFSET: f64 = 0.05;
 /// [`EQUIRECTANGULAR_TABLE_MAX_OFFSET`]: error < 10⁻¹⁷).
 #[inline]
 fn small_sin_cos(d: f64) -> (f64, f64) {
+    // Horner form with reciprocal factorials: multiplications only (a division by a constant
+    // that is not a power of two cannot be turned into a multiplication by the compiler).
+    const S3: f64 = -1.0 / 6.0;
+    const S5: f64 = 1.0 / 120.0;
+    const S7: f64 = -1.0 / 5040.0;
+    const C2: f64 = -0.5;
+    const C4: f64 = 1.0 / 24.0;
+    const C6: f64 = -1.0 / 720.0;
+    const C8: f64 = 1.0 / 40320.0;
     let d2 = d * d;
-    let s = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0 * (1.0 - d2 / 42.0)));
-    let c = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0 * (1.0 - d2 / 56.0)));
+    let s = d + d * d2 * (S3 + d2 * (S5 + d2 * S7));
+    let c = 1.0 + d2 * (C2 + d2 * (C4 + d2 * (C6 + d2 * C8)));
     (s, c)
 }
 
