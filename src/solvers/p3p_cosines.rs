@@ -995,10 +995,9 @@ mod tests {
     }
 
     /// Miss-rate measurement against a 4096-sample reference on 10⁵ problems, for several
-    /// sample counts with and without the extremum search (≈ 1 min; run on demand):
-    /// `cargo test --release --lib p3p_cosines::tests::miss_rate -- --ignored --nocapture`.
+    /// sample counts with and without the extremum search (≈ 10 s in release):
+    /// `cargo test --release --lib p3p_cosines::tests::miss_rate -- --nocapture`.
     #[test]
-    #[ignore]
     fn miss_rate() {
         let trials = 100_000;
         let problems: Vec<P3pProblem> = {
