@@ -184,6 +184,8 @@ struct Axis {
     last_start: f64,
     /// 1 / width of the last cell.
     inv_last_width: f64,
+    /// Largest pixel coordinate inside the image, `extent − ½`.
+    upper: f64,
 }
 
 impl Axis {
@@ -195,6 +197,7 @@ impl Axis {
             inv_step: 1.0 / f64::from(step),
             last_start,
             inv_last_width: 1.0 / (f64::from(extent) - last_start),
+            upper: f64::from(extent) - 0.5,
         }
     }
 
@@ -204,10 +207,12 @@ impl Axis {
     fn locate(&self, coordinate: f64) -> (usize, f64, f64) {
         let a = coordinate + 0.5;
         let f = a * self.inv_step;
-        // `as usize` saturates: negative and NaN go to 0.
-        let i = f as usize;
-        if i + 1 < self.cells {
-            (i, f - i as f64, self.inv_step)
+        // `as u32` saturates: negative and NaN go to 0, too large to `u32::MAX` (then the
+        // last cell, as `cells < 2³²`). Cheaper than `as usize` (no unsigned 64-bit
+        // conversion on x86-64).
+        let i = f as u32;
+        if (i as usize) + 1 < self.cells {
+            (i as usize, f - f64::from(i), self.inv_step)
         } else {
             (
                 self.cells - 1,
@@ -360,17 +365,27 @@ impl Lut {
         to_f64(&self.params.bearings[j * self.cols + i])
     }
 
+    /// `true` when `pixel` lies in the image rectangle `[−½, W − ½] × [−½, H − ½]` (the
+    /// same test as [`in_image_rectangle`], with the bounds precomputed).
+    #[inline]
+    fn contains(&self, pixel: &Pixel) -> bool {
+        pixel.x >= -0.5
+            && pixel.x <= self.u_axis.upper
+            && pixel.y >= -0.5
+            && pixel.y <= self.v_axis.upper
+    }
+
     /// Interpolated (unnormalised) bearing only (the hot path of pixel → bearing).
     #[inline]
     fn interpolate_bearing(&self, pixel: &Pixel) -> Vector3<f64> {
-        let p = &self.params;
         let (i, t, _) = self.u_axis.locate(pixel.x);
         let (j, r, _) = self.v_axis.locate(pixel.y);
         let base = j * self.cols + i;
-        let b00 = to_f64(&p.bearings[base]);
-        let b10 = to_f64(&p.bearings[base + 1]);
-        let b01 = to_f64(&p.bearings[base + self.cols]);
-        let b11 = to_f64(&p.bearings[base + self.cols + 1]);
+        // Two nodes per slice: two bounds checks instead of four.
+        let top_nodes = &self.params.bearings[base..][..2];
+        let bottom_nodes = &self.params.bearings[base + self.cols..][..2];
+        let (b00, b10) = (to_f64(&top_nodes[0]), to_f64(&top_nodes[1]));
+        let (b01, b11) = (to_f64(&bottom_nodes[0]), to_f64(&bottom_nodes[1]));
         let top = b00 + (b10 - b00) * t;
         let bottom = b01 + (b11 - b01) * t;
         top + (bottom - top) * r
@@ -626,7 +641,7 @@ impl CameraModel for Lut {
 
     #[inline]
     fn try_bearing(&self, pixel: &Pixel) -> Option<Vector3<f64>> {
-        if !in_image_rectangle(self.params.width, self.params.height, pixel) {
+        if !self.contains(pixel) {
             return None;
         }
         let b = self.interpolate_bearing(pixel);

@@ -1,0 +1,53 @@
+//! Deterministic cost figure for `Lut::try_bearing` (pixel → bearing of a dense LUT): runs
+//! it through the `Camera` enum in one non-inlined wrapper so that an instruction counter can
+//! attribute every instruction of the call to it.
+//!
+//! Usage (instructions per call = inclusive Ir of `solve` / N):
+//! ```text
+//! cargo build --release --example lut_instructions
+//! valgrind --tool=callgrind --toggle-collect='*lut_instructions::solve*' \
+//!     target/release/examples/lut_instructions 20000 1
+//! ```
+//! Arguments: `[N] [SEED]` (defaults 20000, 1). The LUT is built from the Ladybug2-like
+//! pinhole of `vgps::synthetic::calibration` at `EXAMPLE_LUT_STEP`; pixels are uniform over
+//! the image rectangle, as in the `calibration/bearing/lut` benchmark.
+use nalgebra::{Vector2, Vector3};
+use rand::RngExt;
+use std::hint::black_box;
+use vgps::calibration::{Camera, CameraModel, Lut};
+use vgps::synthetic::calibration::{EXAMPLE_LUT_STEP, ladybug2_pinhole};
+use vgps::synthetic::rng;
+
+/// One pixel → bearing, never inlined: the unit the instruction counter measures.
+#[inline(never)]
+fn solve(camera: &Camera, pixel: &Vector2<f64>) -> Option<Vector3<f64>> {
+    black_box(camera).try_bearing(black_box(pixel))
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let n: usize = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(20_000);
+    let seed: u64 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(1);
+    let lut = Lut::from_model(&ladybug2_pinhole(), EXAMPLE_LUT_STEP)
+        .unwrap_or_else(|e| unreachable!("{e}"));
+    let camera = Camera::from(lut);
+    let (w, h) = camera.image_size();
+    let mut r = rng(seed);
+    let pixels: Vec<Vector2<f64>> = (0..n)
+        .map(|_| {
+            Vector2::new(
+                r.random_range(-0.5..f64::from(w) - 0.5),
+                r.random_range(-0.5..f64::from(h) - 0.5),
+            )
+        })
+        .collect();
+    let mut sum = Vector3::zeros();
+    let mut found = 0usize;
+    for p in &pixels {
+        if let Some(b) = solve(&camera, p) {
+            sum += b;
+            found += 1;
+        }
+    }
+    println!("calls={n} found={found} sum={:.6?}", sum.as_slice());
+}
