@@ -70,6 +70,8 @@ pub struct Equirectangular {
     column_sin_cos: Vec<(f64, f64)>,
     /// (sin φ, cos φ) at every row centre v = 0 … H − 1.
     row_sin_cos: Vec<(f64, f64)>,
+    /// Largest valid pixel coordinates `(W − ½, H − ½)`, kept to spare a conversion per call.
+    max_pixel: (f64, f64),
 }
 
 /// Largest angular offset (radians) from a tabulated pixel centre for which the
@@ -102,7 +104,9 @@ fn small_sin_cos(d: f64) -> (f64, f64) {
 fn table_sin_cos(table: &[(f64, f64)], coordinate: f64, per_pixel: f64, angle: f64) -> (f64, f64) {
     // Nearest centre without `f64::round` (a libm call on baseline x86-64); `as usize`
     // truncates towards zero and saturates, and the coordinate is ≥ −½ here.
-    let k = ((coordinate + 0.5) as usize).min(table.len() - 1);
+    // `as u32` (tables have fewer than 2³² entries) compiles to one conversion on x86-64,
+    // where `as usize` needs a slower unsigned 64-bit sequence.
+    let k = (((coordinate + 0.5) as u32) as usize).min(table.len() - 1);
     let delta = (coordinate - k as f64) * per_pixel;
     if delta.abs() > EQUIRECTANGULAR_TABLE_MAX_OFFSET {
         return angle.sin_cos();
@@ -141,6 +145,10 @@ impl Equirectangular {
             phi_per_v: -PI / f64::from(params.height),
             column_sin_cos: Vec::new(),
             row_sin_cos: Vec::new(),
+            max_pixel: (
+                f64::from(params.width) - 0.5,
+                f64::from(params.height) - 0.5,
+            ),
         };
         model.column_sin_cos = (0..params.width)
             .map(|u| model.angles(&Vector2::new(f64::from(u), 0.0)).0.sin_cos())
@@ -189,7 +197,12 @@ impl CameraModel for Equirectangular {
 
     #[inline]
     fn try_bearing(&self, pixel: &Pixel) -> Option<Vector3<f64>> {
-        if !in_image_rectangle(self.params.width, self.params.height, pixel) {
+        // The test of `in_image_rectangle`, against the stored bounds.
+        if !(pixel.x >= -0.5
+            && pixel.x <= self.max_pixel.0
+            && pixel.y >= -0.5
+            && pixel.y <= self.max_pixel.1)
+        {
             return None;
         }
         let (theta, phi) = self.angles(pixel);

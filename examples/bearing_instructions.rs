@@ -1,21 +1,22 @@
-//! Deterministic cost figure for `Lut::try_bearing` (pixel → bearing of a dense LUT): runs
-//! it through the `Camera` enum in one non-inlined wrapper so that an instruction counter can
+//! Deterministic cost figure for a camera model's pixel → bearing (`try_bearing`) of the
+//! LUT, the equirectangular panorama or the pinhole: runs it through the `Camera` enum in one non-inlined wrapper so that an instruction counter can
 //! attribute every instruction of the call to it.
 //!
 //! Usage (instructions per call = inclusive Ir of `solve` / N):
 //! ```text
-//! cargo build --release --example lut_instructions
-//! valgrind --tool=callgrind --toggle-collect='*lut_instructions::solve*' \
-//!     target/release/examples/lut_instructions 20000 1
+//! cargo build --release --example bearing_instructions
+//! valgrind --tool=callgrind --toggle-collect='*bearing_instructions::solve*' \
+//!     target/release/examples/bearing_instructions 20000 1 lut
 //! ```
-//! Arguments: `[N] [SEED]` (defaults 20000, 1). The LUT is built from the Ladybug2-like
-//! pinhole of `vgps::synthetic::calibration` at `EXAMPLE_LUT_STEP`; pixels are uniform over
-//! the image rectangle, as in the `calibration/bearing/lut` benchmark.
+//! Arguments: `[N] [SEED] [lut|equirectangular|pinhole]` (defaults 20000, 1, lut). The LUT
+//! is built from the Ladybug2-like pinhole of `vgps::synthetic::calibration` at
+//! `EXAMPLE_LUT_STEP`; the panorama is its 2048×1024 example; pixels are uniform over the
+//! image rectangle, as in the `calibration/bearing/*` benchmarks.
 use nalgebra::{Vector2, Vector3};
 use rand::RngExt;
 use std::hint::black_box;
 use vgps::calibration::{Camera, CameraModel, Lut};
-use vgps::synthetic::calibration::{EXAMPLE_LUT_STEP, ladybug2_pinhole};
+use vgps::synthetic::calibration::{EXAMPLE_LUT_STEP, ladybug2_pinhole, panorama};
 use vgps::synthetic::rng;
 
 /// One pixel → bearing, never inlined: the unit the instruction counter measures.
@@ -28,9 +29,14 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let n: usize = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(20_000);
     let seed: u64 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(1);
-    let lut = Lut::from_model(&ladybug2_pinhole(), EXAMPLE_LUT_STEP)
-        .unwrap_or_else(|e| unreachable!("{e}"));
-    let camera = Camera::from(lut);
+    let camera = match args.get(3).map(String::as_str).unwrap_or("lut") {
+        "equirectangular" => Camera::from(panorama()),
+        "pinhole" => Camera::from(ladybug2_pinhole()),
+        _ => Camera::from(
+            Lut::from_model(&ladybug2_pinhole(), EXAMPLE_LUT_STEP)
+                .unwrap_or_else(|e| unreachable!("{e}")),
+        ),
+    };
     let (w, h) = camera.image_size();
     let mut r = rng(seed);
     let pixels: Vec<Vector2<f64>> = (0..n)
