@@ -6,26 +6,14 @@ use rand::RngExt;
 use serde_json::Value;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 use vgps::attitude::HeadingPitchRoll;
 use vgps::geo::{Geodetic, LocalFrame};
 use vgps::geometry::{Pose, bearing_in_rig};
 use vgps::synthetic::{perturb_bearing, rng};
 
-fn vgps(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_vgps"))
-        .args(args)
-        .output()
-        .expect("the vgps binary runs")
-}
-
-fn fixture(name: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fixtures")
-        .join(name)
-        .to_string_lossy()
-        .into_owned()
-}
+mod common;
+use common::{fixture, vgps};
 
 fn json_lines(output: &Output) -> Vec<Value> {
     String::from_utf8_lossy(&output.stdout)

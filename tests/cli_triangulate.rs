@@ -4,25 +4,12 @@
 use nalgebra::{Matrix3, Vector3};
 use rand::RngExt;
 use std::fmt::Write as _;
-use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 use vgps::geo::{Geodetic, LocalFrame};
 use vgps::synthetic::{normal, perturb_bearing, rng};
 
-fn vgps(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_vgps"))
-        .args(args)
-        .output()
-        .expect("the vgps binary runs")
-}
-
-fn fixture(name: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fixtures")
-        .join(name)
-        .to_string_lossy()
-        .into_owned()
-}
+mod common;
+use common::{fixture, vgps};
 
 /// The output rows as maps from column name to text.
 fn rows(output: &Output) -> Vec<std::collections::HashMap<String, String>> {
