@@ -111,7 +111,7 @@ fn two_ray_midpoint_equals_projector_sum() {
         };
         checked += 1;
         assert!((hit.point - est.point).norm() < 1e-9, "{hit:?} {est:?}");
-        assert!((hit.parallax_rad() - est.max_parallax_rad).abs() < 1e-12);
+        assert!((hit.parallax_rad() - est.max_parallax_rad()).abs() < 1e-12);
     }
     assert!(checked > 1900, "{checked}");
 }
@@ -552,7 +552,7 @@ fn ray_sum_matches_the_batch_estimator_at_every_step() {
             assert!((online.point - batch.point).norm() < 1e-8);
             assert!(rel_diff(&online.covariance, &batch.covariance) < 1e-8);
             assert_eq!(online.n_obs, batch.n_obs);
-            assert!((online.max_parallax_rad - batch.max_parallax_rad).abs() < 1e-12);
+            assert!((online.max_parallax_rad() - batch.max_parallax_rad()).abs() < 1e-12);
         }
     }
 }
@@ -578,7 +578,7 @@ fn ray_sum_rejects_invalid_observations_unchanged() {
     sum.add(&obs(good, 0.1, 1e-3)).unwrap();
     let est = sum.solve().unwrap();
     assert!((est.point - Vector3::new(5.0, 5.0, 0.0)).norm() < 1e-12);
-    assert!((est.max_parallax_rad - std::f64::consts::FRAC_PI_2).abs() < 1e-15);
+    assert!((est.max_parallax_rad() - std::f64::consts::FRAC_PI_2).abs() < 1e-15);
 }
 
 // ---------------------------------------------------------------- degenerate input

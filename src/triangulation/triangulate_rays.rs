@@ -4,7 +4,7 @@
 use super::{
     MIN_RAYS, MIN_RECIPROCAL_CONDITION, Sym3, TriangulationError, UNIT_DIRECTION_TOLERANCE,
 };
-use crate::geometry::{Ray, angle_between, is_finite};
+use crate::geometry::{Ray, is_finite};
 use nalgebra::{Matrix3, Vector3};
 
 /// One bearing observation of a landmark: a ray and its noise levels.
@@ -35,9 +35,32 @@ pub struct TriangulatedPoint {
     pub covariance: Matrix3<f64>,
     /// Number of rays used.
     pub n_obs: usize,
+    /// Sine and cosine of the largest angle between the first ray and any other ray (the
+    /// angle itself: [`max_parallax_rad`](Self::max_parallax_rad)).
+    pub max_parallax_sin_cos: (f64, f64),
+}
+
+impl TriangulatedPoint {
     /// The largest angle between the first ray and any other ray (radians, `[0, π]`). The
     /// largest angle between any two rays lies between this and twice this.
-    pub max_parallax_rad: f64,
+    ///
+    /// Computed on demand from [`max_parallax_sin_cos`](Self::max_parallax_sin_cos): the
+    /// `atan2` would otherwise be a large share of a small triangulation's cost.
+    #[inline]
+    pub fn max_parallax_rad(&self) -> f64 {
+        self.max_parallax_sin_cos
+            .0
+            .atan2(self.max_parallax_sin_cos.1)
+    }
+}
+
+/// The sine and cosine of an angle.
+type SinCos = (f64, f64);
+
+/// Sine and cosine of the angle between two unit vectors.
+#[inline]
+fn sin_cos_between(a: &Vector3<f64>, b: &Vector3<f64>) -> SinCos {
+    (a.cross(b).norm(), a.dot(b))
 }
 
 /// The projector-sum landmark estimate of Ku, Ho & Sarma (eq. (2)), with an origin-invariant
@@ -304,7 +327,7 @@ impl RaySum {
         for k in 0..3 {
             m.add_scaled(-2.0 * q[k], &self.m_lin[k]);
         }
-        let parallax = angle_between(&self.first_direction, &self.far_direction);
+        let parallax = sin_cos_between(&self.first_direction, &self.far_direction);
         finish(self.reference, q, &a_inv, &m, self.n, parallax)
     }
 }
@@ -345,7 +368,7 @@ fn check_noise(index: usize, o: &RayObservation) -> Result<(f64, f64), Triangula
 fn accumulate_normal(
     obs: &[RayObservation],
     reference: &Vector3<f64>,
-) -> Result<(Sym3, Vector3<f64>, f64), TriangulationError> {
+) -> Result<(Sym3, Vector3<f64>, SinCos), TriangulationError> {
     let u0 = obs[0].ray.direction;
     let mut far_cos = 1.0;
     let mut far = u0;
@@ -364,7 +387,7 @@ fn accumulate_normal(
         a.add_assign(&p);
         b += p.mul_vec(&y);
     }
-    Ok((a, b, angle_between(&u0, &far)))
+    Ok((a, b, sin_cos_between(&u0, &far)))
 }
 
 /// `(A⁻¹, A⁻¹b)` after the conditioning check.
@@ -432,7 +455,7 @@ fn finish(
     a_inv: &Sym3,
     m: &Sym3,
     n_obs: usize,
-    max_parallax_rad: f64,
+    max_parallax_sin_cos: (f64, f64),
 ) -> Result<TriangulatedPoint, TriangulationError> {
     let point = reference + q;
     let cov = a_inv.sandwich(m);
@@ -443,6 +466,6 @@ fn finish(
         point,
         covariance: cov.to_matrix(),
         n_obs,
-        max_parallax_rad,
+        max_parallax_sin_cos,
     })
 }
