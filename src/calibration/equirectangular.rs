@@ -164,6 +164,15 @@ impl Equirectangular {
         &self.params
     }
 
+    /// The test of [`in_image_rectangle`], against the stored bounds.
+    #[inline]
+    fn contains(&self, pixel: &Pixel) -> bool {
+        pixel.x >= -0.5
+            && pixel.x <= self.max_pixel.0
+            && pixel.y >= -0.5
+            && pixel.y <= self.max_pixel.1
+    }
+
     /// Longitude θ and latitude φ (radians) of a pixel.
     #[inline]
     pub fn angles(&self, pixel: &Pixel) -> (f64, f64) {
@@ -192,17 +201,12 @@ impl CameraModel for Equirectangular {
     }
 
     fn is_inside(&self, pixel: &Pixel) -> bool {
-        in_image_rectangle(self.params.width, self.params.height, pixel)
+        self.contains(pixel)
     }
 
     #[inline]
     fn try_bearing(&self, pixel: &Pixel) -> Option<Vector3<f64>> {
-        // The test of `in_image_rectangle`, against the stored bounds.
-        if !(pixel.x >= -0.5
-            && pixel.x <= self.max_pixel.0
-            && pixel.y >= -0.5
-            && pixel.y <= self.max_pixel.1)
-        {
+        if !self.contains(pixel) {
             return None;
         }
         let (theta, phi) = self.angles(pixel);

@@ -636,7 +636,7 @@ impl CameraModel for Lut {
     }
 
     fn is_inside(&self, pixel: &Pixel) -> bool {
-        in_image_rectangle(self.params.width, self.params.height, pixel)
+        self.contains(pixel)
     }
 
     #[inline]

@@ -137,40 +137,39 @@ impl Rig {
     /// Every camera and pixel that sees a direction in the rig frame (a point at infinity,
     /// so the camera centres' offsets do not matter). Empty for a zero or non-finite vector.
     pub fn project_direction(&self, direction_in_rig: &Vector3<f64>) -> Vec<RigPixel> {
-        if !is_finite(direction_in_rig) {
-            return Vec::new();
-        }
-        self.cameras
-            .iter()
-            .enumerate()
-            .filter_map(|(camera, c)| {
-                let in_camera = c
-                    .rig_from_camera
-                    .rotation
-                    .inverse_transform_vector(direction_in_rig);
-                c.model
-                    .try_pixel(&in_camera)
-                    .map(|pixel| RigPixel { camera, pixel })
-            })
-            .collect()
+        self.project_with(direction_in_rig, |c| {
+            c.rig_from_camera
+                .rotation
+                .inverse_transform_vector(direction_in_rig)
+        })
     }
 
     /// Every camera and pixel that sees a point in the rig frame (metres), from each
     /// camera's own centre. A camera whose centre coincides with the point sees nothing.
     pub fn project_point(&self, point_in_rig: &Vector3<f64>) -> Vec<RigPixel> {
-        if !is_finite(point_in_rig) {
+        self.project_with(point_in_rig, |c| {
+            c.rig_from_camera
+                .inverse_transform_point(&(*point_in_rig).into())
+                .coords
+        })
+    }
+
+    /// The cameras that give a pixel for the camera-frame vector `in_camera(camera)`; none
+    /// for a non-finite `input`.
+    fn project_with(
+        &self,
+        input: &Vector3<f64>,
+        in_camera: impl Fn(&RigCamera) -> Vector3<f64>,
+    ) -> Vec<RigPixel> {
+        if !is_finite(input) {
             return Vec::new();
         }
         self.cameras
             .iter()
             .enumerate()
             .filter_map(|(camera, c)| {
-                let in_camera = c
-                    .rig_from_camera
-                    .inverse_transform_point(&(*point_in_rig).into())
-                    .coords;
                 c.model
-                    .try_pixel(&in_camera)
+                    .try_pixel(&in_camera(c))
                     .map(|pixel| RigPixel { camera, pixel })
             })
             .collect()

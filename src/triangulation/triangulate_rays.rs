@@ -412,7 +412,21 @@ fn solve(a: &Sym3, b: &Vector3<f64>) -> Result<(Sym3, Vector3<f64>), Triangulati
     Ok((a_inv, q))
 }
 
-/// `sᵢ = σ_pos² + σ_ang² |q − yᵢ|²` at a local point `q`, after the in-front and noise checks.
+/// The offset `q − yᵢ` from ray `i`'s origin to a local point `q`, and the residual variance
+/// `sᵢ = σ_pos² + σ_ang² |q − yᵢ|²` there, after the noise check.
+#[inline(always)]
+fn offset_and_variance(
+    index: usize,
+    o: &RayObservation,
+    reference: &Vector3<f64>,
+    q: &Vector3<f64>,
+) -> Result<(Vector3<f64>, f64), TriangulationError> {
+    let (sp2, sa2) = check_noise(index, o)?;
+    let r = q - (o.ray.origin - reference);
+    Ok((r, sp2 + sa2 * r.norm_squared()))
+}
+
+/// `sᵢ` at a local point `q` ([`offset_and_variance`]), after the in-front check.
 #[inline(always)]
 fn residual_variance(
     index: usize,
@@ -420,13 +434,12 @@ fn residual_variance(
     reference: &Vector3<f64>,
     q: &Vector3<f64>,
 ) -> Result<f64, TriangulationError> {
-    let (sp2, sa2) = check_noise(index, o)?;
-    let r = q - (o.ray.origin - reference);
+    let (r, s) = offset_and_variance(index, o, reference, q)?;
     let range_m = r.dot(&o.ray.direction);
     if range_m.is_nan() || range_m <= 0.0 {
         return Err(TriangulationError::BehindRay { index, range_m });
     }
-    Ok(sp2 + sa2 * r.norm_squared())
+    Ok(s)
 }
 
 /// The inverse-variance weight `1/sᵢ` at the local point `q` (no in-front check).
@@ -437,9 +450,7 @@ fn weight(
     reference: &Vector3<f64>,
     q: &Vector3<f64>,
 ) -> Result<f64, TriangulationError> {
-    let (sp2, sa2) = check_noise(index, o)?;
-    let r = q - (o.ray.origin - reference);
-    let s = sp2 + sa2 * r.norm_squared();
+    let (_, s) = offset_and_variance(index, o, reference, q)?;
     if s > 0.0 && s < f64::INFINITY {
         Ok(1.0 / s)
     } else {
