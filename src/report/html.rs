@@ -87,10 +87,10 @@ impl Axes {
         let mut v = (self.x.0 / xs).ceil() * xs;
         while v <= self.x.1 + 1e-9 * xs {
             let p = self.px(v);
-            let _ = write!(
+            let _ = writeln!(
                 s,
                 "<line x1=\"{p:.1}\" y1=\"{t:.1}\" x2=\"{p:.1}\" y2=\"{b:.1}\" stroke=\"#eee\"/>\
-                 <text x=\"{p:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{}</text>\n",
+                 <text x=\"{p:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{}</text>",
                 b + 16.0,
                 tick_label(v, xs)
             );
@@ -99,21 +99,21 @@ impl Axes {
         let mut v = (self.y.0 / ys).ceil() * ys;
         while v <= self.y.1 + 1e-9 * ys {
             let p = self.py(v);
-            let _ = write!(
+            let _ = writeln!(
                 s,
                 "<line x1=\"{l:.1}\" y1=\"{p:.1}\" x2=\"{r:.1}\" y2=\"{p:.1}\" stroke=\"#eee\"/>\
-                 <text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">{}</text>\n",
+                 <text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">{}</text>",
                 l - 6.0,
                 p + 4.0,
                 tick_label(v, ys)
             );
             v += ys;
         }
-        let _ = write!(
+        let _ = writeln!(
             s,
             "<rect x=\"{l:.1}\" y=\"{t:.1}\" width=\"{:.1}\" height=\"{:.1}\" fill=\"none\" stroke=\"#888\"/>\n\
              <text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{}</text>\n\
-             <text transform=\"translate(16,{:.1}) rotate(-90)\" text-anchor=\"middle\">{}</text>\n",
+             <text transform=\"translate(16,{:.1}) rotate(-90)\" text-anchor=\"middle\">{}</text>",
             r - l,
             b - t,
             0.5 * (l + r),
@@ -126,10 +126,10 @@ impl Axes {
 }
 
 fn svg_open(s: &mut String, label: &str) {
-    let _ = write!(
+    let _ = writeln!(
         s,
         "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{SVG_W}\" height=\"{SVG_H}\" \
-         viewBox=\"0 0 {SVG_W} {SVG_H}\" role=\"img\" aria-label=\"{}\">\n",
+         viewBox=\"0 0 {SVG_W} {SVG_H}\" role=\"img\" aria-label=\"{}\">",
         xml_escape(label)
     );
 }
@@ -138,10 +138,10 @@ fn polyline(s: &mut String, pts: &[String], colour: &str, width: f64, extra: &st
     if pts.is_empty() {
         return;
     }
-    let _ = write!(
+    let _ = writeln!(
         s,
         "<polyline points=\"{}\" fill=\"none\" stroke=\"{colour}\" stroke-width=\"{width}\" \
-         stroke-linejoin=\"round\"{extra}/>\n",
+         stroke-linejoin=\"round\"{extra}/>",
         pts.join(" ")
     );
 }
@@ -149,18 +149,18 @@ fn polyline(s: &mut String, pts: &[String], colour: &str, width: f64, extra: &st
 fn legend(s: &mut String, items: &[(&str, String)]) {
     let x = SVG_W - MARGIN.1 - 190.0;
     let mut y = MARGIN.2 + 8.0;
-    let _ = write!(
+    let _ = writeln!(
         s,
-        "<rect x=\"{:.1}\" y=\"{:.1}\" width=\"180\" height=\"{:.1}\" fill=\"#fff\" fill-opacity=\"0.85\" stroke=\"#aaa\"/>\n",
+        "<rect x=\"{:.1}\" y=\"{:.1}\" width=\"180\" height=\"{:.1}\" fill=\"#fff\" fill-opacity=\"0.85\" stroke=\"#aaa\"/>",
         x - 5.0,
         y - 4.0,
         18.0 * items.len() as f64 + 6.0
     );
     for (name, colour) in items {
-        let _ = write!(
+        let _ = writeln!(
             s,
             "<rect x=\"{x:.1}\" y=\"{:.1}\" width=\"16\" height=\"8\" fill=\"{colour}\"/>\
-             <text x=\"{:.1}\" y=\"{:.1}\">{}</text>\n",
+             <text x=\"{:.1}\" y=\"{:.1}\">{}</text>",
             y + 2.0,
             x + 22.0,
             y + 10.0,
@@ -211,7 +211,13 @@ fn track_map(s: &mut String, geom: &[FrameGeom]) {
             .iter()
             .filter_map(|g| under(g).map(|p| ax.point(p.x, p.y)))
             .collect();
-        polyline(s, &line, &band, 10.0, " stroke-opacity=\"0.35\" stroke-linecap=\"round\"");
+        polyline(
+            s,
+            &line,
+            &band,
+            10.0,
+            " stroke-opacity=\"0.35\" stroke-linecap=\"round\"",
+        );
     }
     let tracks: [(Get, (u8, u8, u8), f64); 3] = [
         (|g| g.truth, TRUTH_RGB, 2.5),
@@ -241,13 +247,13 @@ fn track_map(s: &mut String, geom: &[FrameGeom]) {
     let len = nice_step(0.2 * span * pw, 1.0);
     let (bx, by) = (MARGIN.0 + 20.0, SVG_H - MARGIN.3 - 20.0);
     let bw = len / span;
-    let _ = write!(
+    let _ = writeln!(
         s,
         "<g stroke=\"#000\" stroke-width=\"2\"><line x1=\"{bx:.1}\" y1=\"{by:.1}\" x2=\"{:.1}\" y2=\"{by:.1}\"/>\
          <line x1=\"{bx:.1}\" y1=\"{:.1}\" x2=\"{bx:.1}\" y2=\"{:.1}\"/>\
          <line x1=\"{:.1}\" y1=\"{:.1}\" x2=\"{:.1}\" y2=\"{:.1}\"/></g>\
          <text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{} m</text>\n\
-         <text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">N &#8593;</text>\n",
+         <text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">N &#8593;</text>",
         bx + bw,
         by - 5.0,
         by + 5.0,
@@ -275,35 +281,61 @@ fn track_map(s: &mut String, geom: &[FrameGeom]) {
 
 fn error_vs_time(s: &mut String, records: &[FrameRecord], geom: &[FrameGeom]) {
     svg_open(s, "horizontal error against time");
-    let t0 = records.iter().map(|r| r.time_s).find(|t| t.is_finite()).unwrap_or(0.0);
+    let t0 = records
+        .iter()
+        .map(|r| r.time_s)
+        .find(|t| t.is_finite())
+        .unwrap_or(0.0);
     let has_truth = geom.iter().any(|g| g.truth.is_some());
     type Err = fn(&FrameGeom, bool) -> Option<f64>;
     let series: [(&str, Err, (u8, u8, u8)); 2] = [
-        ("satellite vs truth", |g, _| g.gnss_vs_truth.map(|d| d.h), GNSS_RGB),
         (
-            if has_truth { "visual vs truth" } else { "visual vs satellite" },
-            |g, t| if t { g.visual_vs_truth } else { g.visual_vs_gnss }.map(|d| d.h),
+            "satellite vs truth",
+            |g, _| g.gnss_vs_truth.map(|d| d.h),
+            GNSS_RGB,
+        ),
+        (
+            if has_truth {
+                "visual vs truth"
+            } else {
+                "visual vs satellite"
+            },
+            |g, t| {
+                if t {
+                    g.visual_vs_truth
+                } else {
+                    g.visual_vs_gnss
+                }
+                .map(|d| d.h)
+            },
             VISUAL_RGB,
         ),
     ];
     let times: Vec<f64> = records.iter().map(|r| r.time_s - t0).collect();
-    let t_end = times.iter().copied().filter(|t| t.is_finite()).fold(1.0, f64::max);
+    let t_end = times
+        .iter()
+        .copied()
+        .filter(|t| t.is_finite())
+        .fold(1.0, f64::max);
     let e_max = geom
         .iter()
         .flat_map(|g| series.iter().map(move |(_, f, _)| f(g, has_truth)))
         .flatten()
         .fold(1.0, f64::max)
         * 1.1;
-    let ax = Axes { x: (0.0, t_end), y: (0.0, e_max) };
+    let ax = Axes {
+        x: (0.0, t_end),
+        y: (0.0, e_max),
+    };
     let (t, b) = (MARGIN.2, SVG_H - MARGIN.3);
     for (a, z) in runs(geom.iter().map(|g| g.blackout)) {
         let (xa, xz) = (times[a], times[z]);
         if !(xa.is_finite() && xz.is_finite()) {
             continue;
         }
-        let _ = write!(
+        let _ = writeln!(
             s,
-            "<rect x=\"{:.1}\" y=\"{t:.1}\" width=\"{:.1}\" height=\"{:.1}\" fill=\"{}\"/>\n",
+            "<rect x=\"{:.1}\" y=\"{t:.1}\" width=\"{:.1}\" height=\"{:.1}\" fill=\"{}\"/>",
             ax.px(xa),
             (ax.px(xz) - ax.px(xa)).max(1.0),
             b - t,
@@ -324,7 +356,12 @@ fn error_vs_time(s: &mut String, records: &[FrameRecord], geom: &[FrameGeom]) {
         let c = css_rgb(colour);
         let _ = write!(s, "<g fill=\"{c}\">");
         for (x, y) in pts {
-            let _ = write!(s, "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"1.8\"/>", ax.px(x), ax.py(y));
+            let _ = write!(
+                s,
+                "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"1.8\"/>",
+                ax.px(x),
+                ax.py(y)
+            );
         }
         s.push_str("</g>\n");
         items.push((name, c));
@@ -337,14 +374,26 @@ fn error_cdf(s: &mut String, geom: &[FrameGeom]) {
     svg_open(s, "cumulative distribution of horizontal errors");
     type Pick = fn(&FrameGeom) -> Option<f64>;
     let series: [(&str, Pick, String); 4] = [
-        ("visual vs truth", |g| g.visual_vs_truth.map(|d| d.h), css_rgb(VISUAL_RGB)),
+        (
+            "visual vs truth",
+            |g| g.visual_vs_truth.map(|d| d.h),
+            css_rgb(VISUAL_RGB),
+        ),
         (
             "visual vs truth, blackout",
             |g| g.visual_vs_truth.filter(|_| g.blackout).map(|d| d.h),
             "#f0a020".into(),
         ),
-        ("satellite vs truth", |g| g.gnss_vs_truth.map(|d| d.h), css_rgb(GNSS_RGB)),
-        ("visual vs satellite", |g| g.visual_vs_gnss.map(|d| d.h), "#8040c0".into()),
+        (
+            "satellite vs truth",
+            |g| g.gnss_vs_truth.map(|d| d.h),
+            css_rgb(GNSS_RGB),
+        ),
+        (
+            "visual vs satellite",
+            |g| g.visual_vs_gnss.map(|d| d.h),
+            "#8040c0".into(),
+        ),
     ];
     let sorted: Vec<Vec<f64>> = series
         .iter()
@@ -355,12 +404,15 @@ fn error_cdf(s: &mut String, geom: &[FrameGeom]) {
         })
         .collect();
     let x_max = sorted.iter().flatten().copied().fold(1.0, f64::max) * 1.05;
-    let ax = Axes { x: (0.0, x_max), y: (0.0, 1.0) };
+    let ax = Axes {
+        x: (0.0, x_max),
+        y: (0.0, 1.0),
+    };
     ax.frame(s, "horizontal error (m)", "fraction of frames");
     for q in [0.5, 0.95] {
-        let _ = write!(
+        let _ = writeln!(
             s,
-            "<line x1=\"{:.1}\" y1=\"{:.1}\" x2=\"{:.1}\" y2=\"{:.1}\" stroke=\"#999\" stroke-dasharray=\"4 3\"/>\n",
+            "<line x1=\"{:.1}\" y1=\"{:.1}\" x2=\"{:.1}\" y2=\"{:.1}\" stroke=\"#999\" stroke-dasharray=\"4 3\"/>",
             ax.px(0.0),
             ax.py(q),
             ax.px(x_max),
@@ -419,11 +471,11 @@ pub fn report_html(drive: &DriveInfo, records: &[FrameRecord], report: &Report) 
     let geom = derive(drive, records);
     let name = xml_escape(&drive.name);
     let mut s = String::new();
-    let _ = write!(
+    let _ = writeln!(
         s,
         "<!DOCTYPE html>\n<html xmlns=\"http://www.w3.org/1999/xhtml\" lang=\"en\">\n<head>\n\
          <meta charset=\"utf-8\"/>\n<title>vgps replay: {name}</title>\n<style>{CSS}</style>\n\
-         </head>\n<body>\n<h1>vgps replay: {name}</h1>\n"
+         </head>\n<body>\n<h1>vgps replay: {name}</h1>"
     );
     let span = match (
         report.first_time_s.and_then(utc_iso8601),
@@ -433,9 +485,9 @@ pub fn report_html(drive: &DriveInfo, records: &[FrameRecord], report: &Report) 
         _ => String::new(),
     };
     let o = &report.origin;
-    let _ = write!(
+    let _ = writeln!(
         s,
-        "<p>{} frames{span}; visual fixes {} ({} %); ENU origin {:.9}&#176;, {:.9}&#176;, {:.3} m.</p>\n",
+        "<p>{} frames{span}; visual fixes {} ({} %); ENU origin {:.9}&#176;, {:.9}&#176;, {:.3} m.</p>",
         report.frames,
         report.visual_fixes,
         num(report.visual_fix_rate.map(|r| 100.0 * r), 1),
@@ -450,7 +502,11 @@ pub fn report_html(drive: &DriveInfo, records: &[FrameRecord], report: &Report) 
     comparison_row(&mut s, "visual vs truth", &report.visual_vs_truth);
     comparison_row(&mut s, "satellite vs truth", &report.gnss_vs_truth);
     comparison_row(&mut s, "visual vs satellite", &report.visual_vs_gnss);
-    comparison_row(&mut s, "visual vs truth, blackout", &report.blackout.visual_vs_truth);
+    comparison_row(
+        &mut s,
+        "visual vs truth, blackout",
+        &report.blackout.visual_vs_truth,
+    );
     s.push_str("</table>\n");
     let b = &report.blackout;
     let _ = write!(
@@ -477,9 +533,9 @@ pub fn report_html(drive: &DriveInfo, records: &[FrameRecord], report: &Report) 
     error_vs_time(&mut s, records, &geom);
     s.push_str("<h2>Cumulative distribution of the horizontal error</h2>\n");
     error_cdf(&mut s, &geom);
-    let _ = write!(
+    let _ = writeln!(
         s,
-        "<h2>Text summary</h2>\n<pre>{}</pre>\n</body>\n</html>\n",
+        "<h2>Text summary</h2>\n<pre>{}</pre>\n</body>\n</html>",
         xml_escape(&summary_table(report))
     );
     s

@@ -37,7 +37,7 @@ pub fn nmea_checksum(body: &str) -> String {
 }
 
 fn sentence(out: &mut String, body: &str) {
-    let _ = write!(out, "${body}*{}\r\n", nmea_checksum(body));
+    let _ = writeln!(out, "${body}*{}\r", nmea_checksum(body));
 }
 
 /// `ddmm.mmmmmm,N` or `dddmm.mmmmmm,E` (hemisphere letter included).
@@ -117,9 +117,7 @@ pub fn fixes_nmea(records: &[FrameRecord]) -> String {
                     ),
                 );
                 let (speed, course) = match previous {
-                    Some((t0, g0))
-                        if r.time_s > t0 && r.time_s - t0 <= MAX_VELOCITY_GAP_S =>
-                    {
+                    Some((t0, g0)) if r.time_s > t0 && r.time_s - t0 <= MAX_VELOCITY_GAP_S => {
                         let d = LocalFrame::new(*g0).to_enu(g);
                         let speed = d.xy().norm() / (r.time_s - t0) / MPS_PER_KNOT;
                         let course = wrap_deg(d.x.atan2(d.y).to_degrees()).rem_euclid(360.0);
@@ -155,8 +153,14 @@ pub fn fixes_nmea(records: &[FrameRecord]) -> String {
                 previous = Some((r.time_s, g));
             }
             None => {
-                sentence(&mut out, &format!("{NMEA_TALKER}GGA,{hms},,,,,0,00,,,M,,M,,"));
-                sentence(&mut out, &format!("{NMEA_TALKER}RMC,{hms},V,,,,,,,{date},,,N"));
+                sentence(
+                    &mut out,
+                    &format!("{NMEA_TALKER}GGA,{hms},,,,,0,00,,,M,,M,,"),
+                );
+                sentence(
+                    &mut out,
+                    &format!("{NMEA_TALKER}RMC,{hms},V,,,,,,,{date},,,N"),
+                );
             }
         }
     }

@@ -86,7 +86,12 @@ pub fn plot_track_png(drive: &DriveInfo, records: &[FrameRecord]) -> Result<Vec<
         .iter()
         .flat_map(|g| [g.visual, g.gnss, g.truth])
         .flatten();
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+    let (mut x0, mut x1, mut y0, mut y1) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
     for p in pts {
         x0 = x0.min(p.x);
         x1 = x1.max(p.x);
@@ -131,19 +136,22 @@ pub fn plot_track_png(drive: &DriveInfo, records: &[FrameRecord]) -> Result<Vec<
             .draw()
             .map_err(|x| e(x.to_string()))?;
         type Get = fn(&FrameGeom) -> Option<nalgebra::Vector3<f64>>;
-        let tracks: [(&str, Get, (u8, u8, u8)); 3] = [
-            ("truth", |g| g.truth, TRUTH_RGB),
-            ("satellite", |g| g.gnss, GNSS_RGB),
-            ("visual", |g| g.visual, VISUAL_RGB),
+        type Track<'a> = (&'a str, Get, (u8, u8, u8), u32);
+        // Width 1 for the noisy tracks: plotters' wide bitmap polylines draw miter spikes
+        // at sharp turns.
+        let tracks: [Track; 3] = [
+            ("truth", |g| g.truth, TRUTH_RGB, 2),
+            ("satellite", |g| g.gnss, GNSS_RGB, 1),
+            ("visual", |g| g.visual, VISUAL_RGB, 1),
         ];
-        for (name, get, colour) in tracks {
+        for (name, get, colour, width) in tracks {
             let mut first = true;
             for (a, b) in runs(geom.iter().map(|g| get(g).is_some())) {
                 let line: Vec<(f64, f64)> = geom[a..=b]
                     .iter()
                     .filter_map(|g| get(g).map(|p| (p.x, p.y)))
                     .collect();
-                let style = rgb(colour).stroke_width(2);
+                let style = rgb(colour).stroke_width(width);
                 let series = chart
                     .draw_series(LineSeries::new(line, style))
                     .map_err(|x| e(x.to_string()))?;
@@ -193,13 +201,21 @@ pub fn plot_error_png(drive: &DriveInfo, records: &[FrameRecord]) -> Result<Vec<
     const WHAT: &str = "error.png";
     register_font();
     let geom = derive(drive, records);
-    let t0 = records.iter().map(|r| r.time_s).find(|t| t.is_finite()).unwrap_or(0.0);
+    let t0 = records
+        .iter()
+        .map(|r| r.time_s)
+        .find(|t| t.is_finite())
+        .unwrap_or(0.0);
     let has_truth = geom.iter().any(|g| g.truth.is_some());
     let visual: Vec<(f64, f64)> = records
         .iter()
         .zip(&geom)
         .filter_map(|(r, g)| {
-            let d = if has_truth { g.visual_vs_truth } else { g.visual_vs_gnss }?;
+            let d = if has_truth {
+                g.visual_vs_truth
+            } else {
+                g.visual_vs_gnss
+            }?;
             Some((r.time_s - t0, d.h)).filter(|p| p.0.is_finite())
         })
         .collect();
@@ -261,7 +277,11 @@ pub fn plot_error_png(drive: &DriveInfo, records: &[FrameRecord]) -> Result<Vec<
                 .label("satellite blackout")
                 .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], shade));
         }
-        let visual_name = if has_truth { "visual vs truth" } else { "visual vs satellite" };
+        let visual_name = if has_truth {
+            "visual vs truth"
+        } else {
+            "visual vs satellite"
+        };
         for (name, pts, colour) in [
             ("satellite vs truth", gnss, GNSS_RGB),
             (visual_name, visual, VISUAL_RGB),

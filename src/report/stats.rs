@@ -332,8 +332,7 @@ fn surrogate_drift(records: &[FrameRecord], geom: &[FrameGeom]) -> Option<Surrog
         }
         cum.push(g.truth.map(|_| travelled));
         anchors.push(anchor);
-        if r
-            .visual
+        if r.visual
             .as_ref()
             .is_some_and(|v| v.n_landmarks >= MIN_SURVEYED_LANDMARKS)
             && g.truth.is_some()
@@ -354,7 +353,7 @@ fn surrogate_drift(records: &[FrameRecord], geom: &[FrameGeom]) -> Option<Surrog
     let stretches = runs(surrogate.iter().copied())
         .into_iter()
         .map(|(a, b)| {
-            let last = (a..=b).rev().find_map(|i| ratio_at(i));
+            let last = (a..=b).rev().find_map(&ratio_at);
             DriftStretch {
                 first_frame: records[a].frame,
                 last_frame: records[b].frame,

@@ -157,7 +157,10 @@ fn surrogate_drift_ratio() {
     assert!((d.max_error_per_distance.unwrap() - 0.1).abs() < 1e-6);
     assert_eq!(d.stretches.len(), 2);
     let s = &d.stretches[1];
-    assert_eq!((s.first_frame, s.last_frame, s.anchor_frame), (6, 7, Some(0)));
+    assert_eq!(
+        (s.first_frame, s.last_frame, s.anchor_frame),
+        (6, 7, Some(0))
+    );
     assert!((s.distance_m.unwrap() - 140.0).abs() < 1e-6);
     assert!((s.error_h_m.unwrap() - 14.0).abs() < 1e-6);
     assert_eq!(r.status_counts.get("no_fix"), Some(&1));
@@ -186,7 +189,11 @@ fn csv_round_trip() {
     let text = fixes_csv(&drive(), &recs);
     let mut rd = csv::Reader::from_reader(text.as_bytes());
     let header: Vec<String> = rd.headers().unwrap().iter().map(String::from).collect();
-    let expected: Vec<&str> = FIXES_COLUMNS.iter().chain(&TRUTH_COLUMNS).copied().collect();
+    let expected: Vec<&str> = FIXES_COLUMNS
+        .iter()
+        .chain(&TRUTH_COLUMNS)
+        .copied()
+        .collect();
     assert_eq!(header, expected);
     let rows: Vec<csv::StringRecord> = rd.records().map(|r| r.unwrap()).collect();
     assert_eq!(rows.len(), recs.len());
@@ -222,7 +229,11 @@ fn csv_round_trip() {
             r
         })
         .collect();
-    let first = fixes_csv(&drive(), &no_truth).lines().next().unwrap().to_string();
+    let first = fixes_csv(&drive(), &no_truth)
+        .lines()
+        .next()
+        .unwrap()
+        .to_string();
     assert_eq!(first, FIXES_COLUMNS.join(","));
 }
 
@@ -235,7 +246,12 @@ fn geojson_round_trip() {
     let lines: Vec<_> = fc
         .features
         .iter()
-        .filter(|f| matches!(f.geometry.as_ref().unwrap().value, geojson::Value::LineString(_)))
+        .filter(|f| {
+            matches!(
+                f.geometry.as_ref().unwrap().value,
+                geojson::Value::LineString(_)
+            )
+        })
         .collect();
     let points: Vec<_> = fc
         .features
@@ -245,7 +261,10 @@ fn geojson_round_trip() {
             _ => None,
         })
         .collect();
-    assert_eq!(points.len(), recs.iter().filter(|r| r.visual.is_some()).count());
+    assert_eq!(
+        points.len(),
+        recs.iter().filter(|r| r.visual.is_some()).count()
+    );
     // visual: runs 0–3 and 5–9; gnss: 0–2, 7; truth: 0–5, 7–9 (runs of one point dropped).
     assert_eq!(lines.len(), 2 + 1 + 2);
     let with_fix: Vec<&FrameRecord> = recs.iter().filter(|r| r.visual.is_some()).collect();
@@ -279,7 +298,7 @@ fn gpx_round_trip() {
         assert!((p.elevation.unwrap() - g.alt_m).abs() < 1e-3);
         assert_eq!(p.sat, Some(5));
     }
-    let t = pts[1].time.clone().unwrap().format().unwrap();
+    let t = pts[1].time.unwrap().format().unwrap();
     assert!(t.starts_with("2023-11-14T22:13:20.5"), "{t}");
 }
 
@@ -322,18 +341,25 @@ fn nmea_checksums_and_round_trip() {
     assert_eq!(counts.get("HDT"), Some(&7));
     // Exact position of frame 0 (the origin) and the date of frame 3.
     let first = ::nmea::parse_str(text.lines().next().unwrap()).unwrap();
-    let ::nmea::ParseResult::GGA(g) = first else { panic!() };
+    let ::nmea::ParseResult::GGA(g) = first else {
+        panic!()
+    };
     assert!((g.latitude.unwrap() - origin().lat_deg).abs() < 1e-7);
     assert!((g.longitude.unwrap() - origin().lon_deg).abs() < 1e-7);
     assert_eq!(g.fix_type, Some(::nmea::sentences::FixType::Gps));
-    assert!(text.contains(",151123,"), "date of the day after 2023-11-14");
+    assert!(
+        text.contains(",151123,"),
+        "date of the day after 2023-11-14"
+    );
     // Speed over ground between frames 1 and 2: 20 m east + 2 m north in 1 s.
     let rmc = text
         .lines()
         .filter(|l| l.starts_with("$GPRMC"))
         .nth(2)
         .unwrap();
-    let ::nmea::ParseResult::RMC(m) = ::nmea::parse_str(rmc.trim()).unwrap() else { panic!() };
+    let ::nmea::ParseResult::RMC(m) = ::nmea::parse_str(rmc.trim()).unwrap() else {
+        panic!()
+    };
     let expected_knots = (20.0f64.powi(2) + 2.0f64.powi(2)).sqrt() / (1852.0 / 3600.0);
     assert!((f64::from(m.speed_over_ground.unwrap()) - expected_knots).abs() < 0.01);
     assert_eq!(m.faa_mode, Some(::nmea::sentences::FaaMode::Estimated));
@@ -488,8 +514,14 @@ fn summary_table_lists_the_figures() {
     let r = Report::compute(&drive(), &known_records());
     let t = summary_table(&r);
     assert!(t.contains("frames 10, visual fixes 10 (100.0%)"), "{t}");
-    let row = t.lines().find(|l| l.starts_with("visual vs truth")).unwrap();
+    let row = t
+        .lines()
+        .find(|l| l.starts_with("visual vs truth"))
+        .unwrap();
     let cols: Vec<&str> = row.split_whitespace().collect();
-    assert_eq!(&cols[3..], ["10", "5.000", "10.000", "6.205", "10.000", "2.000"]);
+    assert_eq!(
+        &cols[3..],
+        ["10", "5.000", "10.000", "6.205", "10.000", "2.000"]
+    );
     assert!(t.contains("blackout: frames 4, stretches 2"));
 }

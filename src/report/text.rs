@@ -73,7 +73,15 @@ pub fn summary_table(report: &Report) -> String {
         b.visual_fixes,
         pct(b.visual_fix_rate)
     );
-    comparison_rows(&mut s, "  ", [("visual vs truth", &b.visual_vs_truth), ("", &None), ("", &None)]);
+    comparison_rows(
+        &mut s,
+        "  ",
+        [
+            ("visual vs truth", &b.visual_vs_truth),
+            ("", &None),
+            ("", &None),
+        ],
+    );
     let statuses: Vec<String> = report
         .status_counts
         .iter()

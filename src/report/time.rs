@@ -93,6 +93,9 @@ mod tests {
         assert_eq!(civil_from_days(19_783), (2024, 3, 1));
         // Rounding carries into the next day.
         let t = utc_fields(86_399.996, 2).unwrap();
-        assert_eq!((t.day, t.hour, t.minute, t.second, t.fraction), (2, 0, 0, 0, 0));
+        assert_eq!(
+            (t.day, t.hour, t.minute, t.second, t.fraction),
+            (2, 0, 0, 0, 0)
+        );
     }
 }

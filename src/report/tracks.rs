@@ -11,9 +11,17 @@ use std::fmt::Write;
 /// The three tracks: name, position getter, KML colour (`aabbggrr`).
 type Getter = fn(&FrameRecord) -> Option<&Geodetic>;
 const TRACKS: [(&str, Getter, &str); 3] = [
-    ("visual", |r| r.visual.as_ref().map(|v| &v.geodetic), "ff2020e0"),
+    (
+        "visual",
+        |r| r.visual.as_ref().map(|v| &v.geodetic),
+        "ff2020e0",
+    ),
     ("gnss", |r| r.gnss.as_ref(), "ffe08020"),
-    ("truth", |r| r.truth.as_ref().map(|t| &t.geodetic), "ff20b020"),
+    (
+        "truth",
+        |r| r.truth.as_ref().map(|t| &t.geodetic),
+        "ff20b020",
+    ),
 ];
 
 /// `x` rounded to `decimals` decimals as a JSON number (`null` if not finite).
@@ -76,7 +84,9 @@ pub fn track_geojson(drive: &DriveInfo, records: &[FrameRecord]) -> String {
         p.insert("time_s".into(), jnum(r.time_s, 6));
         p.insert(
             "time".into(),
-            utc_iso8601(r.time_s).map(Value::from).unwrap_or(Value::Null),
+            utc_iso8601(r.time_s)
+                .map(Value::from)
+                .unwrap_or(Value::Null),
         );
         p.insert("status".into(), json!(r.status));
         for (k, x, d) in [
@@ -148,17 +158,17 @@ fn kml_coord(g: &Geodetic) -> String {
 /// landmark counts). Coordinates are `lon,lat,alt`.
 pub fn track_kml(drive: &DriveInfo, records: &[FrameRecord]) -> String {
     let mut s = String::new();
-    let _ = write!(
+    let _ = writeln!(
         s,
         "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n\
-         <kml xmlns=\"http://www.opengis.net/kml/2.2\">\n<Document>\n<name>{}</name>\n",
+         <kml xmlns=\"http://www.opengis.net/kml/2.2\">\n<Document>\n<name>{}</name>",
         xml_escape(&drive.name)
     );
     for (name, _, colour) in TRACKS {
-        let _ = write!(
+        let _ = writeln!(
             s,
             "<Style id=\"{name}\"><LineStyle><color>{colour}</color><width>3</width></LineStyle>\
-             <IconStyle><color>{colour}</color><scale>0.5</scale></IconStyle></Style>\n"
+             <IconStyle><color>{colour}</color><scale>0.5</scale></IconStyle></Style>"
         );
     }
     for (name, get, _) in TRACKS {
@@ -175,11 +185,11 @@ pub fn track_kml(drive: &DriveInfo, records: &[FrameRecord]) -> String {
                 .iter()
                 .filter_map(|r| get(r).map(kml_coord))
                 .collect();
-            let _ = write!(
+            let _ = writeln!(
                 s,
                 "<Placemark><name>{name} {}-{}</name><styleUrl>#{name}</styleUrl>\
                  <LineString><tessellate>1</tessellate><altitudeMode>clampToGround</altitudeMode>\
-                 <coordinates>{}</coordinates></LineString></Placemark>\n",
+                 <coordinates>{}</coordinates></LineString></Placemark>",
                 records[a].frame,
                 records[b].frame,
                 coords.join(" ")
@@ -204,11 +214,11 @@ pub fn track_kml(drive: &DriveInfo, records: &[FrameRecord]) -> String {
                 v.n_landmarks,
                 v.n_surrogates
             );
-            let _ = write!(
+            let _ = writeln!(
                 s,
                 "<Placemark><name>{}</name>{when}<description>{}</description>\
                  <styleUrl>#visual</styleUrl><Point><coordinates>{}</coordinates></Point>\
-                 </Placemark>\n",
+                 </Placemark>",
                 r.frame,
                 xml_escape(&desc),
                 kml_coord(&v.geodetic)
