@@ -19,6 +19,7 @@
 //!   ambiguity and degeneracy statuses).
 //! - [`synthetic`]: the shared synthetic-problem generator used by tests and benchmarks.
 //! - [`io`]: readers for the CSV inputs, with errors that name file, line and field.
+//! - [`report`]: the outputs of `vgps replay` (statistics, tables, track files, plots).
 //! - [`cli`]: the command implementations behind the thin `vgps` binary.
 //!
 //! ## Conventions (one set, everywhere)
@@ -52,6 +53,7 @@ pub mod fix;
 pub mod geo;
 pub mod geometry;
 pub mod io;
+pub mod report;
 pub mod solvers;
 pub mod synthetic;
 pub mod triangulation;

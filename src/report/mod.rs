@@ -1,0 +1,243 @@
+//! The outputs of `vgps replay`: statistics, tables and track files from per-frame records.
+//!
+//! The replay command runs the localizer over a drive and hands this module one
+//! [`FrameRecord`] per frame (the visual fix if any, the satellite position interpolated at
+//! the frame time if any, and the ground truth if the drive has one) plus the drive's
+//! metadata ([`DriveInfo`]). This module is a library over that plain data:
+//!
+//! - [`Report::compute`]: the statistics (CEP50/CEP95/RMS/max horizontal error, vertical RMS,
+//!   the same during satellite blackouts, status counts, heading error, covariance
+//!   consistency, drift on surrogate-only stretches) → `report.json`;
+//! - [`summary_table`]: the same as a text table for stdout;
+//! - [`fixes_csv`], [`track_geojson`], [`track_kml`], [`track_gpx`], [`fixes_nmea`]: the
+//!   per-frame table and the track formats;
+//! - [`report_html`]: one self-contained page (inline CSS and SVG) with the track map, the
+//!   error against time, the error CDFs and the summary;
+//! - [`plot_track_png`], [`plot_error_png`]: PNG plots;
+//! - [`write_outputs`]: all of them into a directory, each written atomically.
+//!
+//! Every difference between two positions is computed in the local East-North-Up frame at
+//! [`DriveInfo::origin`] ([`LocalFrame`]), never in degrees. Every output is deterministic
+//! (the same records give byte-identical files) and free of NaN: a missing or non-finite
+//! value is written as an empty field (CSV, NMEA), `null` (JSON) or left out (XML formats).
+//!
+//! The definitions of every file, column, key and statistic are in `docs/replay-report.md`.
+//!
+//! # Example
+//! ```
+//! use vgps::geo::Geodetic;
+//! use vgps::report::{DriveInfo, FrameRecord, Report, Truth};
+//! let origin = Geodetic::try_new(48.0, 11.0, 500.0)?;
+//! let drive = DriveInfo { name: "demo".into(), origin };
+//! let records: Vec<FrameRecord> = (0..4)
+//!     .map(|i| FrameRecord {
+//!         frame: i,
+//!         time_s: 1_700_000_000.0 + i as f64,
+//!         status: "no_fix".into(),
+//!         visual: None,
+//!         gnss: Some(origin),
+//!         truth: Some(Truth { geodetic: origin, heading_deg: 0.0 }),
+//!     })
+//!     .collect();
+//! let report = Report::compute(&drive, &records);
+//! assert_eq!(report.frames, 4);
+//! assert_eq!(report.visual_fix_rate, Some(0.0));
+//! // The satellite track sits on the truth: zero error.
+//! let g = report.gnss_vs_truth.as_ref().unwrap();
+//! assert_eq!((g.n, g.horizontal_m.max), (4, 0.0));
+//! # Ok::<(), vgps::geo::GeoError>(())
+//! ```
+
+mod atomic;
+mod csv_out;
+mod derived;
+mod html;
+mod nmea;
+mod plot;
+mod stats;
+mod text;
+mod time;
+mod tracks;
+
+pub use atomic::write_atomic;
+pub use csv_out::{FIXES_COLUMNS, TRUTH_COLUMNS, fixes_csv};
+pub use html::report_html;
+pub use nmea::{
+    GGA_QUALITY_ESTIMATED, GGA_QUALITY_FIX, MAX_VELOCITY_GAP_S, NMEA_TALKER, fixes_nmea,
+    nmea_checksum,
+};
+pub use plot::{PLOT_HEIGHT_PX, PLOT_WIDTH_PX, plot_error_png, plot_track_png};
+pub use stats::{
+    BlackoutSection, Comparison, CovarianceConsistency, DriftStretch, HorizontalStats,
+    MIN_DRIFT_DISTANCE_M, Report, SurrogateDrift, quantile_nearest_rank,
+};
+pub use text::summary_table;
+pub use time::utc_iso8601;
+pub use tracks::{track_geojson, track_gpx, track_kml};
+
+use crate::geo::Geodetic;
+use nalgebra::{Matrix2, UnitQuaternion};
+use std::path::{Path, PathBuf};
+
+/// A fix with fewer surveyed landmarks than this (and at least one surrogate) is
+/// "surrogate-only"; a fix with at least this many anchors the drift distance.
+pub const MIN_SURVEYED_LANDMARKS: usize = 3;
+
+/// The probability of the horizontal error ellipse used by the covariance-consistency test.
+pub const ELLIPSE_PROBABILITY: f64 = 0.95;
+
+/// The χ² quantile with 2 degrees of freedom at [`ELLIPSE_PROBABILITY`]:
+/// `−2 ln(1 − 0.95)`. A horizontal error `e` is inside the 95 % ellipse of the covariance
+/// `Σ` when `eᵀ Σ⁻¹ e ≤` this value.
+pub const CHI2_2DOF_95: f64 = 5.991_464_547_107_979;
+
+/// The visual fix of one frame, as the localizer reports it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VisualFix {
+    /// The rig position (WGS84).
+    pub geodetic: Geodetic,
+    /// Heading of the rig +x axis, clockwise from true north (degrees).
+    pub heading_deg: f64,
+    /// Pitch: rig +x above the horizon is positive (degrees).
+    pub pitch_deg: f64,
+    /// Roll: right side down is positive (degrees).
+    pub roll_deg: f64,
+    /// Attitude as the rotation `enu_from_rig` (ENU at the fix).
+    pub enu_from_rig: UnitQuaternion<f64>,
+    /// Standard deviation of the east position (metres).
+    pub sigma_e_m: f64,
+    /// Standard deviation of the north position (metres).
+    pub sigma_n_m: f64,
+    /// Standard deviation of the up position (metres).
+    pub sigma_u_m: f64,
+    /// Covariance of the horizontal position `[east, north]` (m²), in the drive's ENU frame
+    /// (the rotation between the ENU frame at the fix and at the drive origin is below a
+    /// milliradian over 10 km and is neglected).
+    pub horizontal_covariance_m2: Matrix2<f64>,
+    /// Number of surveyed landmarks among the inliers.
+    pub n_landmarks: usize,
+    /// Number of surrogate landmarks (mapped, not surveyed) among the inliers.
+    pub n_surrogates: usize,
+}
+
+impl VisualFix {
+    /// True when the fix rests on surrogates only: fewer than [`MIN_SURVEYED_LANDMARKS`]
+    /// surveyed landmarks and at least one surrogate.
+    pub fn is_surrogate_only(&self) -> bool {
+        self.n_landmarks < MIN_SURVEYED_LANDMARKS && self.n_surrogates > 0
+    }
+}
+
+/// The ground truth of one frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Truth {
+    /// The true rig position (WGS84).
+    pub geodetic: Geodetic,
+    /// The true heading of the rig +x axis, clockwise from true north (degrees).
+    pub heading_deg: f64,
+}
+
+/// Everything the report knows about one frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameRecord {
+    /// Frame index in the drive.
+    pub frame: u64,
+    /// Capture time: Unix seconds, UTC.
+    pub time_s: f64,
+    /// The localizer's status (`ok`, `ambiguous`, `no_fix`, `too_few_observations`,
+    /// `bad_image`, …); counted as given.
+    pub status: String,
+    /// The visual fix, if the localizer produced one.
+    pub visual: Option<VisualFix>,
+    /// The satellite position interpolated at the frame time; `None` during a blackout or
+    /// a gap of the satellite log.
+    pub gnss: Option<Geodetic>,
+    /// The ground truth, if the drive has one.
+    pub truth: Option<Truth>,
+}
+
+/// The drive's metadata.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DriveInfo {
+    /// The drive's name (titles of the page, the track files and the plots).
+    pub name: String,
+    /// The origin of the ENU frame in which every difference is computed.
+    pub origin: Geodetic,
+}
+
+/// Errors of the report module.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    /// A file could not be written.
+    #[error("cannot write {path}: {reason}")]
+    Io {
+        /// The file.
+        path: String,
+        /// The operating system's message.
+        reason: String,
+    },
+    /// A plot could not be drawn or encoded.
+    #[error("cannot draw {what}: {reason}")]
+    Plot {
+        /// Which plot.
+        what: &'static str,
+        /// The plotting library's message.
+        reason: String,
+    },
+}
+
+/// The names of the files written by [`write_outputs`], in writing order.
+pub const OUTPUT_FILES: [&str; 10] = [
+    "fixes.csv",
+    "report.json",
+    "report.html",
+    "track.geojson",
+    "track.kml",
+    "track.gpx",
+    "fixes.nmea",
+    "track.png",
+    "error.png",
+    "summary.txt",
+];
+
+/// Computes the report and writes every output into `dir` (created if missing), each file
+/// atomically (a temporary file in `dir`, then a rename over the target).
+///
+/// Returns the report and the paths written ([`OUTPUT_FILES`] in order).
+///
+/// # Errors
+/// [`ReportError::Io`] naming the file that could not be written, or
+/// [`ReportError::Plot`] if a plot could not be drawn.
+pub fn write_outputs(
+    dir: &Path,
+    drive: &DriveInfo,
+    records: &[FrameRecord],
+) -> Result<(Report, Vec<PathBuf>), ReportError> {
+    std::fs::create_dir_all(dir).map_err(|e| ReportError::Io {
+        path: dir.display().to_string(),
+        reason: e.to_string(),
+    })?;
+    let report = Report::compute(drive, records);
+    let contents: [Vec<u8>; 10] = [
+        fixes_csv(drive, records).into_bytes(),
+        report.to_json().into_bytes(),
+        report_html(drive, records, &report).into_bytes(),
+        track_geojson(drive, records).into_bytes(),
+        track_kml(drive, records).into_bytes(),
+        track_gpx(drive, records).into_bytes(),
+        fixes_nmea(records).into_bytes(),
+        plot_track_png(drive, records)?,
+        plot_error_png(drive, records)?,
+        summary_table(&report).into_bytes(),
+    ];
+    let mut written = Vec::with_capacity(OUTPUT_FILES.len());
+    for (name, bytes) in OUTPUT_FILES.iter().zip(contents.iter()) {
+        let path = dir.join(name);
+        write_atomic(&path, bytes)?;
+        written.push(path);
+    }
+    Ok((report, written))
+}
+
+#[cfg(test)]
+mod tests;
