@@ -20,7 +20,11 @@ fn main() {
     let seed: u64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(1);
     let cold = mode == "cold";
     let mut r = rng(seed);
-    let config = if cold { CityConfig::sparse() } else { CityConfig::default() };
+    let config = if cold {
+        CityConfig::sparse()
+    } else {
+        CityConfig::default()
+    };
     let world = CityWorld::generate(&mut r, &config);
     let db = LandmarkDb::new(
         world
@@ -64,10 +68,37 @@ fn main() {
         let start = Instant::now();
         let result = match_detections(&db, &detections, &area, &options).expect("valid input");
         times.push(start.elapsed().as_secs_f64());
+        if std::env::var("VERBOSE").is_ok() {
+            let true_count = frame.truth.iter().flatten().count();
+            let err = result
+                .estimate
+                .as_ref()
+                .map(|e| (e.world_from_rig.translation.vector - pose.translation.vector).norm());
+            let wrong_links = result
+                .assignment
+                .iter()
+                .zip(&frame.truth)
+                .filter(|(a, t)| a.is_some() && a != t)
+                .count();
+            println!(
+                "{} true {} best {} runner {:?} cells {} hyp {} err {:?} wrong_links {} {:.1} ms {}",
+                result.status,
+                true_count,
+                result.best_score,
+                result.runner_up_score,
+                result.cells,
+                result.hypotheses,
+                err,
+                wrong_links,
+                times.last().unwrap() * 1e3,
+                result.message
+            );
+        }
         match result.status {
             MatchStatus::Ok => {
                 let estimate = result.estimate.expect("ok has an estimate");
-                let error = (estimate.world_from_rig.translation.vector - pose.translation.vector).norm();
+                let error =
+                    (estimate.world_from_rig.translation.vector - pose.translation.vector).norm();
                 let assignment_right = result
                     .assignment
                     .iter()

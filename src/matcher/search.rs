@@ -143,7 +143,12 @@ impl Search<'_> {
     }
 
     /// The candidates of a cell, seen from its centre.
-    fn candidates(&self, centre: &Vector3<f64>, radius: f64, near: &mut Vec<usize>) -> Vec<Candidate> {
+    fn candidates(
+        &self,
+        centre: &Vector3<f64>,
+        radius: f64,
+        near: &mut Vec<usize>,
+    ) -> Vec<Candidate> {
         self.db
             .within(centre, self.options.visibility_range_m + radius, near);
         let k = self.options.inlier_threshold_sigmas;
@@ -168,7 +173,14 @@ impl Search<'_> {
     }
 
     /// Pair table of the detection pair (a, b) in a cell: per landmark i, the bitset of j.
-    fn pair_table(&self, cands: &[Candidate], angles: &[f64], a: usize, b: usize, words: usize) -> Vec<Bits> {
+    fn pair_table(
+        &self,
+        cands: &[Candidate],
+        angles: &[f64],
+        a: usize,
+        b: usize,
+        words: usize,
+    ) -> Vec<Bits> {
         let n = cands.len();
         let theta = angle_between(&self.directions[a], &self.directions[b]);
         let tol = 2.0 * self.noise;
@@ -191,7 +203,16 @@ impl Search<'_> {
     }
 
     /// Scores a pose against a set of landmarks: (inliers, cost, assignment).
-    fn score(&mut self, pose: &Pose, landmarks: &[usize], threshold_factor: f64) -> (usize, f64, Vec<Option<usize>>) {
+    /// Gives up (0 inliers) as soon as fewer than `min_needed` inliers remain possible.
+    fn score(
+        &mut self,
+        pose: &Pose,
+        landmarks: &[usize],
+        threshold_factor: f64,
+        min_needed: usize,
+    ) -> (usize, f64, Vec<Option<usize>>) {
+        let allowed_misses = self.detections.len().saturating_sub(min_needed);
+        let mut misses = 0;
         let range = self.options.visibility_range_m;
         self.scratch_dirs.clear();
         for &index in landmarks {
@@ -201,7 +222,8 @@ impl Search<'_> {
             if r <= range && r > 0.0 {
                 let sigma = (self.options.sigma_rad.powi(2) + (l.sigma_m / r).powi(2)).sqrt();
                 let threshold = threshold_factor * self.options.inlier_threshold_sigmas * sigma;
-                self.scratch_dirs.push((v / r, index, threshold.min(std::f64::consts::PI)));
+                self.scratch_dirs
+                    .push((v / r, index, threshold.min(std::f64::consts::PI)));
             }
         }
         // Per detection: the nearest landmark direction (for rays with an origin offset the
@@ -217,14 +239,24 @@ impl Search<'_> {
                 }
             }
             let Some((index, _, threshold)) = best else {
+                misses += 1;
+                if misses > allowed_misses {
+                    return (0, f64::INFINITY, assignment);
+                }
                 continue;
             };
             let point = self.db.landmarks()[index].position_in_world;
-            let predicted = pose.inverse_transform_vector(&(point - pose.translation.vector)) - det.ray.origin;
+            let predicted =
+                pose.inverse_transform_vector(&(point - pose.translation.vector)) - det.ray.origin;
             let residual = angle_between(&predicted, &self.directions[d]);
             if residual <= threshold {
                 assignment[d] = Some(index);
                 self.scratch_best.push((d, residual / threshold));
+            } else {
+                misses += 1;
+                if misses > allowed_misses {
+                    return (0, f64::INFINITY, assignment);
+                }
             }
         }
         // One-to-one: the smaller normalised residual keeps a landmark.
@@ -279,15 +311,21 @@ impl Search<'_> {
     }
 
     /// Refines a pose with its inliers and re-scores it against every landmark in range.
-    fn refine(&mut self, start: &Pose) -> Option<(Pose, Matrix6<f64>, f64, usize, Vec<Option<usize>>)> {
+    fn refine(
+        &mut self,
+        start: &Pose,
+    ) -> Option<(Pose, Matrix6<f64>, f64, usize, Vec<Option<usize>>)> {
         let mut pose = *start;
         let mut near = Vec::new();
         let mut factor = HYPOTHESIS_THRESHOLD_FACTOR;
         let mut result = None;
         for _ in 0..REFINE_PASSES {
-            self.db
-                .within(&pose.translation.vector, self.options.visibility_range_m, &mut near);
-            let (_, _, assignment) = self.score(&pose, &near.clone(), factor);
+            self.db.within(
+                &pose.translation.vector,
+                self.options.visibility_range_m,
+                &mut near,
+            );
+            let (_, _, assignment) = self.score(&pose, &near.clone(), factor, 0);
             factor = 1.0;
             let mut rays: Vec<Ray> = Vec::new();
             let mut points = Vec::new();
@@ -295,10 +333,14 @@ impl Search<'_> {
             for (d, a) in assignment.iter().enumerate() {
                 if let Some(index) = *a {
                     let l = &self.db.landmarks()[index];
-                    let range = (l.position_in_world - pose.translation.vector).norm().max(1e-3);
+                    let range = (l.position_in_world - pose.translation.vector)
+                        .norm()
+                        .max(1e-3);
                     rays.push(self.detections[d].ray);
                     points.push(l.position_in_world);
-                    sigmas.push((self.options.sigma_rad.powi(2) + (l.sigma_m / range).powi(2)).sqrt());
+                    sigmas.push(
+                        (self.options.sigma_rad.powi(2) + (l.sigma_m / range).powi(2)).sqrt(),
+                    );
                 }
             }
             if rays.len() < 4 {
@@ -311,13 +353,22 @@ impl Search<'_> {
             };
             let refined = refine_pose_with_sigmas(&pose, &rays, &points, &sigmas, &options).ok()?;
             pose = refined.world_from_rig;
-            self.db
-                .within(&pose.translation.vector, self.options.visibility_range_m, &mut near);
-            let (inliers, _, assignment) = self.score(&pose, &near.clone(), 1.0);
-            let done = result
-                .as_ref()
-                .is_some_and(|r: &(Pose, Matrix6<f64>, f64, usize, Vec<Option<usize>>)| r.4 == assignment);
-            result = Some((pose, refined.covariance, refined.rms_residual_rad, inliers, assignment));
+            self.db.within(
+                &pose.translation.vector,
+                self.options.visibility_range_m,
+                &mut near,
+            );
+            let (inliers, _, assignment) = self.score(&pose, &near.clone(), 1.0, 0);
+            let done = result.as_ref().is_some_and(
+                |r: &(Pose, Matrix6<f64>, f64, usize, Vec<Option<usize>>)| r.4 == assignment,
+            );
+            result = Some((
+                pose,
+                refined.covariance,
+                refined.rms_residual_rad,
+                inliers,
+                assignment,
+            ));
             if done {
                 break;
             }
@@ -433,7 +484,11 @@ pub(super) fn run(
 
     let position_margin = options.visibility_range_m * 2.0 * search.noise;
     'triples: for (t, &[a, b, c]) in triples.iter().enumerate() {
-        let bearings = [search.directions[a], search.directions[b], search.directions[c]];
+        let bearings = [
+            search.directions[a],
+            search.directions[b],
+            search.directions[c],
+        ];
         let det_b = bearings[0].dot(&bearings[1].cross(&bearings[2]));
         // The orientation test is used only when the sign of the detections' determinant is
         // beyond the noise (each bearing moves by at most `noise`).
@@ -467,9 +522,12 @@ pub(super) fn run(
                                     db.landmarks()[cands[k].index].position_in_world,
                                 ];
                                 if det_b_reliable {
-                                    let normal = (points[1] - points[0]).cross(&(points[2] - points[0]));
+                                    let normal =
+                                        (points[1] - points[0]).cross(&(points[2] - points[0]));
                                     let nn = normal.norm();
-                                    if nn > 0.0 && (normal.dot(&(centre - points[0])) / nn).abs() > radius {
+                                    if nn > 0.0
+                                        && (normal.dot(&(centre - points[0])) / nn).abs() > radius
+                                    {
                                         let det_l = cands[i]
                                             .direction
                                             .dot(&cands[j].direction.cross(&cands[k].direction));
@@ -479,12 +537,23 @@ pub(super) fn run(
                                     }
                                 }
                                 for pose in p3p(&bearings, &points) {
-                                    if (pose.translation.vector - centre).norm() > radius + position_margin {
+                                    if (pose.translation.vector - centre).norm()
+                                        > radius + position_margin
+                                    {
                                         continue;
                                     }
                                     search.hypotheses += 1;
-                                    let (inliers, cost, _) =
-                                        search.score(&pose, indices, HYPOTHESIS_THRESHOLD_FACTOR);
+                                    // Only hypotheses that could be the best or a close
+                                    // runner-up are worth scoring to the end.
+                                    let best = search.kept.first().map_or(0, |h| h.inliers);
+                                    let needed =
+                                        best.saturating_sub(options.ambiguity_margin + 1).max(4);
+                                    let (inliers, cost, _) = search.score(
+                                        &pose,
+                                        indices,
+                                        HYPOTHESIS_THRESHOLD_FACTOR,
+                                        needed,
+                                    );
                                     if inliers >= options.min_inliers.min(4) {
                                         search.keep(pose, inliers, cost, t);
                                     }
@@ -498,11 +567,9 @@ pub(super) fn run(
                 }
             }
         }
-        if search
-            .kept
-            .first()
-            .is_some_and(|h| h.confirmations >= STOP_CONFIRMATIONS && h.inliers >= options.min_inliers)
-        {
+        if search.kept.first().is_some_and(|h| {
+            h.confirmations >= STOP_CONFIRMATIONS && h.inliers >= options.min_inliers
+        }) {
             break;
         }
     }
@@ -523,7 +590,9 @@ pub(super) fn run(
             "no hypothesis consistent with the detections".to_string(),
         ));
     };
-    let Some((pose, covariance, rms, best_score, assignment)) = search.refine(&best_hypothesis.pose) else {
+    let Some((pose, covariance, rms, best_score, assignment)) =
+        search.refine(&best_hypothesis.pose)
+    else {
         return Ok(failed(
             MatchStatus::NoMatch,
             "the best hypothesis did not refine".to_string(),

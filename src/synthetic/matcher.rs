@@ -49,7 +49,7 @@ pub struct CityConfig {
 
 impl Default for CityConfig {
     /// 10 × 10 blocks of 100 m (1 km²), 16 m streets, lamps every 25 m on both kerbs,
-    /// about 2,160 landmarks.
+    /// 1,940 landmarks.
     fn default() -> Self {
         Self {
             blocks: (10, 10),
@@ -149,7 +149,14 @@ impl CityWorld {
             let (lines, segments) = if along_x { (ny + 1, nx) } else { (nx + 1, ny) };
             for line in 0..lines {
                 for seg in 0..segments {
-                    let start = seg as f64 * b + half;
+                    // North-south kerbs start half a spacing later: no lamp is on two
+                    // streets' kerbs at a corner.
+                    let stagger = if along_x {
+                        0.0
+                    } else {
+                        config.lamp_spacing_m / 2.0
+                    };
+                    let start = seg as f64 * b + half + stagger;
                     let end = (seg + 1) as f64 * b - half;
                     for &side in kerbs {
                         let mut s = start;
@@ -178,7 +185,12 @@ impl CityWorld {
                     (j + 1) as f64 * b - inset,
                 ];
                 let h = rng.random_range(config.building_height_m.0..=config.building_height_m.1);
-                for (x, y) in [(fp[0], fp[1]), (fp[2], fp[1]), (fp[0], fp[3]), (fp[2], fp[3])] {
+                for (x, y) in [
+                    (fp[0], fp[1]),
+                    (fp[2], fp[1]),
+                    (fp[0], fp[3]),
+                    (fp[2], fp[3]),
+                ] {
                     true_landmarks.push(Vector3::new(x, y, h));
                     classes.push(CLASS_CORNER);
                 }
@@ -205,13 +217,22 @@ impl CityWorld {
     pub fn random_rig_pose<R: Rng + ?Sized>(&self, rng: &mut R) -> Pose {
         let (nx, ny) = self.config.blocks;
         let b = self.config.block_m;
-        let lateral = rng.random_range(-(self.config.street_m / 2.0 - 2.0)..=(self.config.street_m / 2.0 - 2.0));
+        let lateral = rng
+            .random_range(-(self.config.street_m / 2.0 - 2.0)..=(self.config.street_m / 2.0 - 2.0));
         let p = if rng.random::<bool>() {
             let line = rng.random_range(0..=ny) as f64 * b;
-            Vector3::new(rng.random_range(0.0..=nx as f64 * b), line + lateral, RIG_HEIGHT_M)
+            Vector3::new(
+                rng.random_range(0.0..=nx as f64 * b),
+                line + lateral,
+                RIG_HEIGHT_M,
+            )
         } else {
             let line = rng.random_range(0..=nx) as f64 * b;
-            Vector3::new(line + lateral, rng.random_range(0.0..=ny as f64 * b), RIG_HEIGHT_M)
+            Vector3::new(
+                line + lateral,
+                rng.random_range(0.0..=ny as f64 * b),
+                RIG_HEIGHT_M,
+            )
         };
         let tilt = 3.0_f64.to_radians();
         let rotation = Rotation3::from_euler_angles(
@@ -230,7 +251,12 @@ impl CityWorld {
             !segment_hits_box(
                 (from.x, from.y),
                 (to.x, to.y),
-                [fp[0] + SHRINK, fp[1] + SHRINK, fp[2] - SHRINK, fp[3] - SHRINK],
+                [
+                    fp[0] + SHRINK,
+                    fp[1] + SHRINK,
+                    fp[2] - SHRINK,
+                    fp[3] - SHRINK,
+                ],
             )
         })
     }
@@ -249,7 +275,12 @@ impl CityWorld {
     /// A frame of detections from a pose: up to `true_detections` visible landmarks (chosen
     /// at random: the others are missed), plus `false_detections` random directions, all
     /// with bearing noise, in random order.
-    pub fn frame<R: Rng + ?Sized>(&self, rng: &mut R, pose: &Pose, config: &FrameConfig) -> SyntheticFrame {
+    pub fn frame<R: Rng + ?Sized>(
+        &self,
+        rng: &mut R,
+        pose: &Pose,
+        config: &FrameConfig,
+    ) -> SyntheticFrame {
         let mut visible = self.visible(pose, config.visibility_m);
         shuffle(rng, &mut visible);
         visible.truncate(config.true_detections);
@@ -261,9 +292,13 @@ impl CityWorld {
             }
         }
         for _ in 0..config.false_detections {
-            let class = config
-                .labelled
-                .then(|| if rng.random::<bool>() { CLASS_STREETLIGHT } else { CLASS_CORNER });
+            let class = config.labelled.then(|| {
+                if rng.random::<bool>() {
+                    CLASS_STREETLIGHT
+                } else {
+                    CLASS_CORNER
+                }
+            });
             items.push((random_unit_vector(rng), class, None));
         }
         shuffle(rng, &mut items);
@@ -285,7 +320,10 @@ fn shuffle<R: Rng + ?Sized, T>(rng: &mut R, items: &mut [T]) {
 /// Whether the 2-D segment p→q meets the open box `[min_x, min_y, max_x, max_y]` (slabs).
 fn segment_hits_box(p: (f64, f64), q: (f64, f64), bx: [f64; 4]) -> bool {
     let (mut t0, mut t1) = (0.0_f64, 1.0_f64);
-    for (o, d, lo, hi) in [(p.0, q.0 - p.0, bx[0], bx[2]), (p.1, q.1 - p.1, bx[1], bx[3])] {
+    for (o, d, lo, hi) in [
+        (p.0, q.0 - p.0, bx[0], bx[2]),
+        (p.1, q.1 - p.1, bx[1], bx[3]),
+    ] {
         if d.abs() < 1e-12 {
             if o <= lo || o >= hi {
                 return false;
@@ -311,13 +349,33 @@ mod tests {
     fn city_has_the_documented_sizes_and_frames_see_real_landmarks() {
         let mut r = super::super::rng(5);
         let world = CityWorld::generate(&mut r, &CityConfig::default());
-        assert!((2000..2300).contains(&world.landmarks.len()), "{}", world.landmarks.len());
+        assert!(
+            (1900..2100).contains(&world.landmarks.len()),
+            "{}",
+            world.landmarks.len()
+        );
         let sparse = CityWorld::generate(&mut r, &CityConfig::sparse());
-        assert!((950..1150).contains(&sparse.landmarks.len()), "{}", sparse.landmarks.len());
+        assert!(
+            (950..1150).contains(&sparse.landmarks.len()),
+            "{}",
+            sparse.landmarks.len()
+        );
+        for (k, p) in world.true_landmarks.iter().enumerate() {
+            for q in &world.true_landmarks[k + 1..] {
+                assert!((p - q).norm() > 1.0, "duplicate landmark at {p:?}");
+            }
+        }
         let mut enough = 0;
         for _ in 0..200 {
             let pose = world.random_rig_pose(&mut r);
-            let frame = world.frame(&mut r, &pose, &FrameConfig { sigma_rad: 0.0, ..FrameConfig::default() });
+            let frame = world.frame(
+                &mut r,
+                &pose,
+                &FrameConfig {
+                    sigma_rad: 0.0,
+                    ..FrameConfig::default()
+                },
+            );
             for (b, t) in frame.detections.iter().zip(&frame.truth) {
                 if let Some(k) = t {
                     let expected = bearing_in_rig(&pose, &world.true_landmarks[*k]).unwrap();
@@ -335,8 +393,20 @@ mod tests {
 
     #[test]
     fn buildings_block_the_view() {
-        assert!(segment_hits_box((0.0, 5.0), (10.0, 5.0), [2.0, 2.0, 8.0, 8.0]));
-        assert!(!segment_hits_box((0.0, 1.0), (10.0, 1.0), [2.0, 2.0, 8.0, 8.0]));
-        assert!(!segment_hits_box((0.0, 0.0), (1.9, 5.0), [2.0, 2.0, 8.0, 8.0]));
+        assert!(segment_hits_box(
+            (0.0, 5.0),
+            (10.0, 5.0),
+            [2.0, 2.0, 8.0, 8.0]
+        ));
+        assert!(!segment_hits_box(
+            (0.0, 1.0),
+            (10.0, 1.0),
+            [2.0, 2.0, 8.0, 8.0]
+        ));
+        assert!(!segment_hits_box(
+            (0.0, 0.0),
+            (1.9, 5.0),
+            [2.0, 2.0, 8.0, 8.0]
+        ));
     }
 }
