@@ -60,7 +60,7 @@ impl LandmarkDb {
         let mut entries = Vec::with_capacity(landmarks.len());
         for (k, l) in landmarks.iter().enumerate() {
             let p = l.position_in_world;
-            if !crate::geometry::is_finite(&p) || !(l.sigma_m.is_finite() && l.sigma_m >= 0.0) {
+            if !(crate::geometry::is_finite(&p) && l.sigma_m.is_finite() && l.sigma_m >= 0.0) {
                 return Err(MatchError::InvalidLandmark(k));
             }
             bounds = Some(match bounds {
@@ -106,7 +106,7 @@ impl LandmarkDb {
     /// (3-D distance) of `center`, in increasing index order.
     pub fn within(&self, center: &Vector3<f64>, radius_m: f64, out: &mut Vec<usize>) {
         out.clear();
-        if !(radius_m.is_finite() && radius_m >= 0.0) || !crate::geometry::is_finite(center) {
+        if !(radius_m.is_finite() && radius_m >= 0.0 && crate::geometry::is_finite(center)) {
             return;
         }
         out.extend(

@@ -31,6 +31,12 @@ struct Hypothesis {
     last_triple: usize,
 }
 
+/// A refined hypothesis: pose, covariance, RMS residual (rad), inliers, assignment.
+type Refined = (Pose, Matrix6<f64>, f64, usize, Vec<Option<usize>>);
+
+/// A cell: centre, candidates, pairwise candidate angles (row-major), candidate indices.
+type Cell = (Vector3<f64>, Vec<Candidate>, Vec<f64>, Vec<usize>);
+
 /// A bitset of landmarks of a cell.
 type Bits = Vec<u64>;
 
@@ -311,10 +317,7 @@ impl Search<'_> {
     }
 
     /// Refines a pose with its inliers and re-scores it against every landmark in range.
-    fn refine(
-        &mut self,
-        start: &Pose,
-    ) -> Option<(Pose, Matrix6<f64>, f64, usize, Vec<Option<usize>>)> {
+    fn refine(&mut self, start: &Pose) -> Option<Refined> {
         let mut pose = *start;
         let mut near = Vec::new();
         let mut factor = HYPOTHESIS_THRESHOLD_FACTOR;
@@ -359,9 +362,7 @@ impl Search<'_> {
                 &mut near,
             );
             let (inliers, _, assignment) = self.score(&pose, &near.clone(), 1.0, 0);
-            let done = result.as_ref().is_some_and(
-                |r: &(Pose, Matrix6<f64>, f64, usize, Vec<Option<usize>>)| r.4 == assignment,
-            );
+            let done = result.as_ref().is_some_and(|r: &Refined| r.4 == assignment);
             result = Some((
                 pose,
                 refined.covariance,
@@ -436,7 +437,7 @@ pub(super) fn run(
 
     // The cells with candidates, each with its pairwise landmark angles.
     let mut near = Vec::new();
-    let mut cell_data: Vec<(Vector3<f64>, Vec<Candidate>, Vec<f64>, Vec<usize>)> = Vec::new();
+    let mut cell_data: Vec<Cell> = Vec::new();
     for centre in &centres {
         let cands = search.candidates(centre, radius, &mut near);
         if cands.len() < 3 {
@@ -503,8 +504,8 @@ pub(super) fn run(
                 if ab[i].iter().all(|&w| w == 0) || ac[i].iter().all(|&w| w == 0) {
                     continue;
                 }
-                for wj in 0..words {
-                    let mut bits_j = ab[i][wj];
+                for (wj, &word_j) in ab[i].iter().enumerate() {
+                    let mut bits_j = word_j;
                     while bits_j != 0 {
                         let j = wj * 64 + bits_j.trailing_zeros() as usize;
                         bits_j &= bits_j - 1;
@@ -636,15 +637,15 @@ pub(super) fn run(
         );
         return Ok(result);
     }
-    if let Some((score, _)) = runner_up {
-        if score + options.ambiguity_margin > best_score {
-            result.status = MatchStatus::Ambiguous;
-            result.message = format!(
-                "two distinct poses with {best_score} and {score} inliers (margin {} needed)",
-                options.ambiguity_margin
-            );
-            return Ok(result);
-        }
+    if let Some((score, _)) = runner_up
+        && score + options.ambiguity_margin > best_score
+    {
+        result.status = MatchStatus::Ambiguous;
+        result.message = format!(
+            "two distinct poses with {best_score} and {score} inliers (margin {} needed)",
+            options.ambiguity_margin
+        );
+        return Ok(result);
     }
     result.assignment = assignment;
     result.estimate = Some(MatchEstimate {
