@@ -59,15 +59,15 @@
 //!     id: format!("L{k}"), position_in_world: *p, class: None, sigma_m: 0.0,
 //! }).collect()).unwrap();
 //! let truth = Pose::new(Vector3::new(1.0, 2.0, 2.0), Vector3::new(0.0, 0.0, 0.7));
-//! // Detections of landmarks 3, 0, 5, 1, 6, 2 (in that order) and one stray light.
-//! let mut detections: Vec<Detection> = [3, 0, 5, 1, 6, 2].iter()
+//! // Detections of every landmark (in a shuffled order) and one stray light.
+//! let mut detections: Vec<Detection> = [3, 0, 5, 1, 6, 2, 7, 4].iter()
 //!     .map(|&k| Detection::new(Ray::try_new(Vector3::zeros(), bearing_in_rig(&truth, &points[k]).unwrap()).unwrap()))
 //!     .collect();
 //! detections.push(Detection::new(Ray::try_new(Vector3::zeros(), Vector3::new(0.3, -0.9, 0.2)).unwrap()));
 //! let area = SearchArea::around(&Vector3::new(5.0, -3.0, 2.0), 10.0, 2.0).unwrap();
 //! let result = match_detections(&db, &detections, &area, &MatchOptions::default()).unwrap();
-//! assert_eq!(result.status, MatchStatus::Ok);
-//! assert_eq!(result.assignment, vec![Some(3), Some(0), Some(5), Some(1), Some(6), Some(2), None]);
+//! assert_eq!(result.status, MatchStatus::Ok, "{result:?}");
+//! assert_eq!(result.assignment, vec![Some(3), Some(0), Some(5), Some(1), Some(6), Some(2), Some(7), Some(4), None]);
 //! let fix = result.estimate.unwrap();
 //! assert!((fix.world_from_rig.translation.vector - truth.translation.vector).norm() < 1e-6);
 //! ```
