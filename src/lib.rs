@@ -54,6 +54,7 @@ pub mod geo;
 pub mod geometry;
 pub mod io;
 pub mod report;
+pub mod matcher;
 pub mod solvers;
 pub mod synthetic;
 pub mod triangulation;

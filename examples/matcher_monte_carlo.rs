@@ -1,0 +1,137 @@
+//! Monte-Carlo rates of the landmark matcher on the synthetic city: right assignment, wrong
+//! fixes (status ok but > 5 m off), ambiguous / no-fix frames and the time per frame.
+//!
+//! Run: `cargo run --release --example matcher_monte_carlo -- [prior|cold] [FRAMES] [SEED]`
+use std::time::Instant;
+use vgps::geometry::Ray;
+use vgps::matcher::{
+    DbLandmark, Detection, LandmarkDb, MatchOptions, MatchStatus, SearchArea, match_detections,
+};
+use vgps::synthetic::matcher::{CityConfig, CityWorld, FrameConfig, RIG_HEIGHT_M};
+use vgps::synthetic::rng;
+
+/// A wrong fix is a fix this far from the truth, metres.
+const WRONG_FIX_M: f64 = 5.0;
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let mode = args.get(1).map_or("prior", String::as_str).to_string();
+    let frames: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(1000);
+    let seed: u64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(1);
+    let cold = mode == "cold";
+    let mut r = rng(seed);
+    let config = if cold {
+        CityConfig::sparse()
+    } else {
+        CityConfig::default()
+    };
+    let world = CityWorld::generate(&mut r, &config);
+    let db = LandmarkDb::new(
+        world
+            .landmarks
+            .iter()
+            .enumerate()
+            .map(|(k, p)| DbLandmark {
+                id: format!("L{k}"),
+                position_in_world: *p,
+                class: None,
+                sigma_m: 0.0,
+            })
+            .collect(),
+    )
+    .expect("valid landmarks");
+    let frame_config = FrameConfig::default();
+    let options = MatchOptions {
+        sigma_rad: frame_config.sigma_rad,
+        ..MatchOptions::default()
+    };
+    let (mut right, mut wrong, mut ambiguous, mut none) = (0usize, 0usize, 0usize, 0usize);
+    let mut times = Vec::with_capacity(frames);
+    for _ in 0..frames {
+        let pose = world.random_rig_pose(&mut r);
+        let frame = world.frame(&mut r, &pose, &frame_config);
+        let detections: Vec<Detection> = frame
+            .detections
+            .iter()
+            .filter_map(|b| Ray::try_new(nalgebra::Vector3::zeros(), *b))
+            .map(Detection::new)
+            .collect();
+        let area = if cold {
+            SearchArea::over_landmarks(&db, 0.0, RIG_HEIGHT_M - 1.0, RIG_HEIGHT_M + 1.0)
+        } else {
+            let offset = vgps::synthetic::random_unit_vector(&mut r).xy().normalize()
+                * r_range(&mut r, 30.0);
+            let centre = pose.translation.vector + nalgebra::Vector3::new(offset.x, offset.y, 0.0);
+            SearchArea::around(&centre, 30.0, 1.0)
+        }
+        .expect("valid area");
+        let start = Instant::now();
+        let result = match_detections(&db, &detections, &area, &options).expect("valid input");
+        times.push(start.elapsed().as_secs_f64());
+        if std::env::var("VERBOSE").is_ok() {
+            let true_count = frame.truth.iter().flatten().count();
+            let err = result
+                .estimate
+                .as_ref()
+                .map(|e| (e.world_from_rig.translation.vector - pose.translation.vector).norm());
+            let wrong_links = result
+                .assignment
+                .iter()
+                .zip(&frame.truth)
+                .filter(|(a, t)| a.is_some() && a != t)
+                .count();
+            println!(
+                "{} true {} best {} runner {:?} cells {} hyp {} err {:?} wrong_links {} {:.1} ms {}",
+                result.status,
+                true_count,
+                result.best_score,
+                result.runner_up_score,
+                result.cells,
+                result.hypotheses,
+                err,
+                wrong_links,
+                times.last().unwrap() * 1e3,
+                result.message
+            );
+        }
+        match result.status {
+            MatchStatus::Ok => {
+                let estimate = result.estimate.expect("ok has an estimate");
+                let error =
+                    (estimate.world_from_rig.translation.vector - pose.translation.vector).norm();
+                let assignment_right = result
+                    .assignment
+                    .iter()
+                    .zip(&frame.truth)
+                    .all(|(a, t)| a.is_none() || a == t);
+                if error > WRONG_FIX_M {
+                    wrong += 1;
+                } else if assignment_right {
+                    right += 1;
+                } else {
+                    none += 1;
+                }
+            }
+            MatchStatus::Ambiguous => ambiguous += 1,
+            _ => none += 1,
+        }
+    }
+    times.sort_by(f64::total_cmp);
+    let pct = |x: usize| 100.0 * x as f64 / frames as f64;
+    println!(
+        "{mode}: {} landmarks, {frames} frames: right {right} ({:.2} %), wrong fixes {wrong} ({:.3} %), ambiguous {ambiguous} ({:.2} %), other no-fix/partly-wrong assignment {none} ({:.2} %); time per frame median {:.3} ms, p90 {:.3} ms, max {:.3} ms",
+        db.len(),
+        pct(right),
+        pct(wrong),
+        pct(ambiguous),
+        pct(none),
+        times[frames / 2] * 1e3,
+        times[frames * 9 / 10] * 1e3,
+        times[frames - 1] * 1e3,
+    );
+}
+
+fn r_range<R: rand::Rng + ?Sized>(r: &mut R, max: f64) -> f64 {
+    use rand::RngExt;
+    max * r.random_range(0.0..1.0f64).sqrt()
+}

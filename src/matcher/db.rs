@@ -1,0 +1,119 @@
+//! The landmark database: surveyed landmarks in a local world frame with an R*-tree index.
+
+use super::MatchError;
+use nalgebra::Vector3;
+use rstar::RTree;
+use rstar::primitives::GeomWithData;
+
+/// One surveyed landmark of a [`LandmarkDb`].
+///
+/// # Units
+/// Metres in the local world frame (usually ENU at an origin).
+#[derive(Clone, Debug, PartialEq)]
+pub struct DbLandmark {
+    /// Identifier (as in the landmarks file).
+    pub id: String,
+    /// Position in the world frame, metres.
+    pub position_in_world: Vector3<f64>,
+    /// Optional class code (e.g. 0 = streetlight, 1 = building corner); a detection with a
+    /// class only matches landmarks of the same class or without one.
+    pub class: Option<u32>,
+    /// Survey standard deviation per axis, metres (0 = exact).
+    pub sigma_m: f64,
+}
+
+type Entry = GeomWithData<[f64; 3], u32>;
+
+/// Landmarks with a spatial index (an R*-tree, `rstar`): `Send + Sync`, immutable after
+/// construction, so one database can be shared between threads in an `Arc`.
+///
+/// # Example
+/// ```
+/// use nalgebra::Vector3;
+/// use vgps::matcher::{DbLandmark, LandmarkDb};
+/// let db = LandmarkDb::new(vec![
+///     DbLandmark { id: "a".into(), position_in_world: Vector3::new(10.0, 0.0, 6.0), class: None, sigma_m: 0.0 },
+///     DbLandmark { id: "b".into(), position_in_world: Vector3::new(200.0, 0.0, 6.0), class: None, sigma_m: 0.0 },
+/// ]).unwrap();
+/// let mut near = Vec::new();
+/// db.within(&Vector3::zeros(), 80.0, &mut near);
+/// assert_eq!(near, vec![0]);
+/// ```
+#[derive(Debug)]
+pub struct LandmarkDb {
+    landmarks: Vec<DbLandmark>,
+    tree: RTree<Entry>,
+    bounds: Option<(Vector3<f64>, Vector3<f64>)>,
+}
+
+impl LandmarkDb {
+    /// Builds the database (bulk-loaded R*-tree).
+    ///
+    /// # Errors
+    /// [`MatchError::InvalidLandmark`] for a non-finite position or a negative or non-finite
+    /// survey σ; [`MatchError::TooManyLandmarks`] above `u32::MAX` landmarks.
+    pub fn new(landmarks: Vec<DbLandmark>) -> Result<Self, MatchError> {
+        if u32::try_from(landmarks.len()).is_err() {
+            return Err(MatchError::TooManyLandmarks(landmarks.len()));
+        }
+        let mut bounds: Option<(Vector3<f64>, Vector3<f64>)> = None;
+        let mut entries = Vec::with_capacity(landmarks.len());
+        for (k, l) in landmarks.iter().enumerate() {
+            let p = l.position_in_world;
+            if !(crate::geometry::is_finite(&p) && l.sigma_m.is_finite() && l.sigma_m >= 0.0) {
+                return Err(MatchError::InvalidLandmark(k));
+            }
+            bounds = Some(match bounds {
+                None => (p, p),
+                Some((lo, hi)) => (lo.inf(&p), hi.sup(&p)),
+            });
+            entries.push(Entry::new([p.x, p.y, p.z], k as u32));
+        }
+        Ok(Self {
+            landmarks,
+            tree: RTree::bulk_load(entries),
+            bounds,
+        })
+    }
+
+    /// Number of landmarks.
+    pub fn len(&self) -> usize {
+        self.landmarks.len()
+    }
+
+    /// True when there are no landmarks.
+    pub fn is_empty(&self) -> bool {
+        self.landmarks.is_empty()
+    }
+
+    /// All landmarks, in construction order (indices of [`Self::within`] and of match
+    /// assignments refer to this order).
+    pub fn landmarks(&self) -> &[DbLandmark] {
+        &self.landmarks
+    }
+
+    /// The landmark at `index`, if any.
+    pub fn get(&self, index: usize) -> Option<&DbLandmark> {
+        self.landmarks.get(index)
+    }
+
+    /// The axis-aligned bounding box `(min, max)` of the landmarks, `None` when empty.
+    pub fn bounds(&self) -> Option<(Vector3<f64>, Vector3<f64>)> {
+        self.bounds
+    }
+
+    /// Replaces the contents of `out` by the indices of the landmarks within `radius_m`
+    /// (3-D distance) of `center`, in increasing index order.
+    pub fn within(&self, center: &Vector3<f64>, radius_m: f64, out: &mut Vec<usize>) {
+        out.clear();
+        if !(radius_m.is_finite() && radius_m >= 0.0 && crate::geometry::is_finite(center)) {
+            return;
+        }
+        out.extend(
+            self.tree
+                .locate_within_distance([center.x, center.y, center.z], radius_m * radius_m)
+                .map(|e| e.data as usize),
+        );
+        out.sort_unstable();
+    }
+}

@@ -1,0 +1,657 @@
+//! The search behind [`super::match_detections`]: cells, pair tables, hypotheses, scoring,
+//! refinement and the runner-up.
+
+use super::{
+    DISTINCT_POSITION_M, DISTINCT_ROTATION_RAD, DUPLICATE_ANGLE_RAD, Detection,
+    HYPOTHESIS_THRESHOLD_FACTOR, LandmarkDb, MAX_CELLS, MAX_KEPT_HYPOTHESES,
+    MAX_RUNNER_UP_REFINEMENTS, MIN_TRIPLE_ANGLE_RAD, MatchError, MatchEstimate, MatchOptions,
+    MatchResult, MatchStatus, REFINE_PASSES, STOP_CONFIRMATIONS, SearchArea,
+};
+use crate::geometry::{Pose, Ray, angle_between, try_unit};
+use crate::solvers::p3p;
+use crate::solvers::refine_pose::{RefineOptions, refine_pose_with_sigmas};
+use nalgebra::{Matrix6, Vector3};
+use rand::{RngExt, SeedableRng};
+
+/// A landmark as seen from a cell centre.
+struct Candidate {
+    index: usize,
+    direction: Vector3<f64>,
+    /// Half-width of the direction's wander over the cell plus its survey term, radians.
+    slack: f64,
+}
+
+/// One scored hypothesis.
+#[derive(Clone)]
+struct Hypothesis {
+    pose: Pose,
+    inliers: usize,
+    cost: f64,
+    confirmations: u32,
+    last_triple: usize,
+}
+
+/// A refined hypothesis: pose, covariance, RMS residual (rad), inliers, assignment.
+type Refined = (Pose, Matrix6<f64>, f64, usize, Vec<Option<usize>>);
+
+/// A cell: centre, candidates, pairwise candidate angles (row-major), candidate indices.
+type Cell = (Vector3<f64>, Vec<Candidate>, Vec<f64>, Vec<usize>);
+
+/// A bitset of landmarks of a cell.
+type Bits = Vec<u64>;
+
+fn bit_set(bits: &mut [u64], k: usize) {
+    bits[k / 64] |= 1 << (k % 64);
+}
+
+fn validate(detections: &[Detection], options: &MatchOptions) -> Result<(), MatchError> {
+    let positive = |v: f64| v.is_finite() && v > 0.0;
+    if !positive(options.sigma_rad) {
+        return Err(MatchError::InvalidOption("sigma_rad"));
+    }
+    if !positive(options.inlier_threshold_sigmas) {
+        return Err(MatchError::InvalidOption("inlier_threshold_sigmas"));
+    }
+    if !positive(options.visibility_range_m) {
+        return Err(MatchError::InvalidOption("visibility_range_m"));
+    }
+    if !positive(options.cell_size_m) {
+        return Err(MatchError::InvalidOption("cell_size_m"));
+    }
+    if options.min_inliers < 4 {
+        return Err(MatchError::InvalidOption("min_inliers"));
+    }
+    if options.ambiguity_margin < 1 {
+        return Err(MatchError::InvalidOption("ambiguity_margin"));
+    }
+    if options.max_core_detections < 3 {
+        return Err(MatchError::InvalidOption("max_core_detections"));
+    }
+    for (k, d) in detections.iter().enumerate() {
+        if !crate::geometry::is_finite(&d.ray.origin) || try_unit(&d.ray.direction).is_none() {
+            return Err(MatchError::InvalidDetection(k));
+        }
+    }
+    Ok(())
+}
+
+/// Cell centres covering the area, and the cells' radius (half-diagonal).
+fn cells(area: &SearchArea, size: f64) -> Result<(Vec<Vector3<f64>>, f64), MatchError> {
+    let extent = area.max_in_world - area.min_in_world;
+    let counts: Vec<usize> = (0..3)
+        .map(|k| ((extent[k] / size).ceil() as usize).max(1))
+        .collect();
+    let total = counts[0]
+        .saturating_mul(counts[1])
+        .saturating_mul(counts[2]);
+    if total > MAX_CELLS {
+        return Err(MatchError::AreaTooLarge(total));
+    }
+    let step = Vector3::from_fn(|k, _| extent[k] / counts[k] as f64);
+    let mut centres = Vec::with_capacity(total);
+    for iz in 0..counts[2] {
+        for iy in 0..counts[1] {
+            for ix in 0..counts[0] {
+                let f = Vector3::new(ix as f64 + 0.5, iy as f64 + 0.5, iz as f64 + 0.5);
+                centres.push(area.min_in_world + step.component_mul(&f));
+            }
+        }
+    }
+    Ok((centres, 0.5 * step.norm()))
+}
+
+/// Up to `max` detections, greedily spread over the sphere (farthest-point order).
+fn core_detections(directions: &[Vector3<f64>], max: usize) -> Vec<usize> {
+    let n = directions.len();
+    if n <= max {
+        return (0..n).collect();
+    }
+    let mut chosen = vec![0usize];
+    let mut nearest: Vec<f64> = directions
+        .iter()
+        .map(|d| angle_between(d, &directions[0]))
+        .collect();
+    while chosen.len() < max {
+        let (next, _) = nearest
+            .iter()
+            .enumerate()
+            .fold((0, -1.0), |b, (k, &a)| if a > b.1 { (k, a) } else { b });
+        chosen.push(next);
+        for (k, d) in directions.iter().enumerate() {
+            nearest[k] = nearest[k].min(angle_between(d, &directions[next]));
+        }
+    }
+    chosen
+}
+
+struct Search<'a> {
+    db: &'a LandmarkDb,
+    detections: &'a [Detection],
+    directions: Vec<Vector3<f64>>,
+    options: &'a MatchOptions,
+    /// Per-bearing noise bound k·σ (radians).
+    noise: f64,
+    kept: Vec<Hypothesis>,
+    hypotheses: usize,
+    scratch_dirs: Vec<(Vector3<f64>, usize, f64)>,
+    scratch_best: Vec<(usize, f64)>,
+}
+
+impl Search<'_> {
+    fn compatible(&self, detection: usize, landmark: usize) -> bool {
+        match (
+            self.detections[detection].class,
+            self.db.landmarks()[landmark].class,
+        ) {
+            (Some(a), Some(b)) => a == b,
+            _ => true,
+        }
+    }
+
+    /// The candidates of a cell, seen from its centre.
+    fn candidates(
+        &self,
+        centre: &Vector3<f64>,
+        radius: f64,
+        near: &mut Vec<usize>,
+    ) -> Vec<Candidate> {
+        self.db
+            .within(centre, self.options.visibility_range_m + radius, near);
+        let k = self.options.inlier_threshold_sigmas;
+        near.iter()
+            .filter_map(|&index| {
+                let l = &self.db.landmarks()[index];
+                let v = l.position_in_world - centre;
+                let range = v.norm();
+                let direction = try_unit(&v)?;
+                let wander = if range > radius {
+                    (radius / range).asin()
+                } else {
+                    std::f64::consts::PI
+                };
+                Some(Candidate {
+                    index,
+                    direction,
+                    slack: wander + k * l.sigma_m / range.max(radius),
+                })
+            })
+            .collect()
+    }
+
+    /// Pair table of the detection pair (a, b) in a cell: per landmark i, the bitset of j.
+    fn pair_table(
+        &self,
+        cands: &[Candidate],
+        angles: &[f64],
+        a: usize,
+        b: usize,
+        words: usize,
+    ) -> Vec<Bits> {
+        let n = cands.len();
+        let theta = angle_between(&self.directions[a], &self.directions[b]);
+        let tol = 2.0 * self.noise;
+        let mut table = vec![vec![0u64; words]; n];
+        for i in 0..n {
+            if !self.compatible(a, cands[i].index) {
+                continue;
+            }
+            for j in 0..n {
+                if i == j || !self.compatible(b, cands[j].index) {
+                    continue;
+                }
+                let w = cands[i].slack + cands[j].slack + tol;
+                if (theta - angles[i * n + j]).abs() <= w {
+                    bit_set(&mut table[i], j);
+                }
+            }
+        }
+        table
+    }
+
+    /// Scores a pose against a set of landmarks: (inliers, cost, assignment).
+    /// Gives up (0 inliers) as soon as fewer than `min_needed` inliers remain possible.
+    fn score(
+        &mut self,
+        pose: &Pose,
+        landmarks: &[usize],
+        threshold_factor: f64,
+        min_needed: usize,
+    ) -> (usize, f64, Vec<Option<usize>>) {
+        let allowed_misses = self.detections.len().saturating_sub(min_needed);
+        let mut misses = 0;
+        let range = self.options.visibility_range_m;
+        self.scratch_dirs.clear();
+        for &index in landmarks {
+            let l = &self.db.landmarks()[index];
+            let v = pose.inverse_transform_vector(&(l.position_in_world - pose.translation.vector));
+            let r = v.norm();
+            if r <= range && r > 0.0 {
+                let sigma = (self.options.sigma_rad.powi(2) + (l.sigma_m / r).powi(2)).sqrt();
+                let threshold = threshold_factor * self.options.inlier_threshold_sigmas * sigma;
+                self.scratch_dirs
+                    .push((v / r, index, threshold.min(std::f64::consts::PI)));
+            }
+        }
+        // Per detection: the nearest landmark direction (for rays with an origin offset the
+        // direction from the camera centre is used).
+        self.scratch_best.clear();
+        let mut assignment = vec![None; self.detections.len()];
+        for (d, det) in self.detections.iter().enumerate() {
+            let mut best: Option<(usize, f64, f64)> = None;
+            for &(dir, index, threshold) in &self.scratch_dirs {
+                let dot = dir.dot(&self.directions[d]);
+                if best.is_none_or(|b| dot > b.1) {
+                    best = Some((index, dot, threshold));
+                }
+            }
+            let Some((index, _, threshold)) = best else {
+                misses += 1;
+                if misses > allowed_misses {
+                    return (0, f64::INFINITY, assignment);
+                }
+                continue;
+            };
+            let point = self.db.landmarks()[index].position_in_world;
+            let predicted =
+                pose.inverse_transform_vector(&(point - pose.translation.vector)) - det.ray.origin;
+            let residual = angle_between(&predicted, &self.directions[d]);
+            if residual <= threshold {
+                assignment[d] = Some(index);
+                self.scratch_best.push((d, residual / threshold));
+            } else {
+                misses += 1;
+                if misses > allowed_misses {
+                    return (0, f64::INFINITY, assignment);
+                }
+            }
+        }
+        // One-to-one: the smaller normalised residual keeps a landmark.
+        let mut order: Vec<usize> = (0..self.scratch_best.len()).collect();
+        order.sort_by(|&x, &y| self.scratch_best[x].1.total_cmp(&self.scratch_best[y].1));
+        let mut taken: Vec<usize> = Vec::with_capacity(order.len());
+        let mut inliers = 0;
+        let mut cost = 0.0;
+        for k in order {
+            let (d, r) = self.scratch_best[k];
+            let Some(index) = assignment[d] else { continue };
+            if taken.contains(&index) {
+                assignment[d] = None;
+            } else {
+                taken.push(index);
+                inliers += 1;
+                cost += r * r;
+            }
+        }
+        (inliers, cost, assignment)
+    }
+
+    fn keep(&mut self, pose: Pose, inliers: usize, cost: f64, triple: usize) {
+        if let Some(h) = self.kept.iter_mut().find(|h| same_pose(&h.pose, &pose)) {
+            if triple != h.last_triple {
+                h.confirmations += 1;
+                h.last_triple = triple;
+            }
+            if inliers > h.inliers || (inliers == h.inliers && cost < h.cost) {
+                h.pose = pose;
+                h.inliers = inliers;
+                h.cost = cost;
+            }
+        } else {
+            if self.kept.len() >= MAX_KEPT_HYPOTHESES {
+                let worst = self.kept.last().map_or(0, |h| h.inliers);
+                if inliers <= worst {
+                    return;
+                }
+                self.kept.pop();
+            }
+            self.kept.push(Hypothesis {
+                pose,
+                inliers,
+                cost,
+                confirmations: 1,
+                last_triple: triple,
+            });
+        }
+        self.kept
+            .sort_by(|x, y| y.inliers.cmp(&x.inliers).then(x.cost.total_cmp(&y.cost)));
+    }
+
+    /// Refines a pose with its inliers and re-scores it against every landmark in range.
+    fn refine(&mut self, start: &Pose) -> Option<Refined> {
+        let mut pose = *start;
+        let mut near = Vec::new();
+        let mut factor = HYPOTHESIS_THRESHOLD_FACTOR;
+        let mut result = None;
+        for _ in 0..REFINE_PASSES {
+            self.db.within(
+                &pose.translation.vector,
+                self.options.visibility_range_m,
+                &mut near,
+            );
+            let (_, _, assignment) = self.score(&pose, &near.clone(), factor, 0);
+            factor = 1.0;
+            let mut rays: Vec<Ray> = Vec::new();
+            let mut points = Vec::new();
+            let mut sigmas = Vec::new();
+            for (d, a) in assignment.iter().enumerate() {
+                if let Some(index) = *a {
+                    let l = &self.db.landmarks()[index];
+                    let range = (l.position_in_world - pose.translation.vector)
+                        .norm()
+                        .max(1e-3);
+                    rays.push(self.detections[d].ray);
+                    points.push(l.position_in_world);
+                    sigmas.push(
+                        (self.options.sigma_rad.powi(2) + (l.sigma_m / range).powi(2)).sqrt(),
+                    );
+                }
+            }
+            if rays.len() < 4 {
+                return None;
+            }
+            let options = RefineOptions {
+                sigma_rad: self.options.sigma_rad,
+                accept_unconverged: true,
+                ..RefineOptions::default()
+            };
+            let refined = refine_pose_with_sigmas(&pose, &rays, &points, &sigmas, &options).ok()?;
+            pose = refined.world_from_rig;
+            self.db.within(
+                &pose.translation.vector,
+                self.options.visibility_range_m,
+                &mut near,
+            );
+            let (inliers, _, assignment) = self.score(&pose, &near.clone(), 1.0, 0);
+            let done = result.as_ref().is_some_and(|r: &Refined| r.4 == assignment);
+            result = Some((
+                pose,
+                refined.covariance,
+                refined.rms_residual_rad,
+                inliers,
+                assignment,
+            ));
+            if done {
+                break;
+            }
+        }
+        result
+    }
+}
+
+fn same_pose(a: &Pose, b: &Pose) -> bool {
+    (a.translation.vector - b.translation.vector).norm() < DISTINCT_POSITION_M
+        && (a.rotation.inverse() * b.rotation).angle() < DISTINCT_ROTATION_RAD
+}
+
+/// Fisher–Yates shuffle with the crate's reproducible generator.
+fn shuffle<T>(items: &mut [T], seed: u64) {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    for i in (1..items.len()).rev() {
+        let j = rng.random_range(0..=i);
+        items.swap(i, j);
+    }
+}
+
+pub(super) fn run(
+    db: &LandmarkDb,
+    detections: &[Detection],
+    area: &SearchArea,
+    options: &MatchOptions,
+) -> Result<MatchResult, MatchError> {
+    validate(detections, options)?;
+    let n = detections.len();
+    let (centres, radius) = cells(area, options.cell_size_m)?;
+    if n < 3 {
+        return Ok(MatchResult::failed(
+            MatchStatus::TooFewDetections,
+            n,
+            format!("{n} detections; a match needs at least 3"),
+        ));
+    }
+    let directions: Vec<Vector3<f64>> = detections
+        .iter()
+        .filter_map(|d| try_unit(&d.ray.direction))
+        .collect();
+    for a in 0..n {
+        for b in a + 1..n {
+            if angle_between(&directions[a], &directions[b]) < DUPLICATE_ANGLE_RAD {
+                return Ok(MatchResult::failed(
+                    MatchStatus::DuplicateDetections,
+                    n,
+                    format!("detections {a} and {b} have the same bearing"),
+                ));
+            }
+        }
+    }
+    let mut search = Search {
+        db,
+        detections,
+        directions,
+        options,
+        noise: options.inlier_threshold_sigmas * options.sigma_rad,
+        kept: Vec::new(),
+        hypotheses: 0,
+        scratch_dirs: Vec::new(),
+        scratch_best: Vec::new(),
+    };
+
+    // The cells with candidates, each with its pairwise landmark angles.
+    let mut near = Vec::new();
+    let mut cell_data: Vec<Cell> = Vec::new();
+    for centre in &centres {
+        let cands = search.candidates(centre, radius, &mut near);
+        if cands.len() < 3 {
+            continue;
+        }
+        let m = cands.len();
+        let mut angles = vec![0.0; m * m];
+        for i in 0..m {
+            for j in i + 1..m {
+                let a = angle_between(&cands[i].direction, &cands[j].direction);
+                angles[i * m + j] = a;
+                angles[j * m + i] = a;
+            }
+        }
+        let indices = cands.iter().map(|c| c.index).collect();
+        cell_data.push((*centre, cands, angles, indices));
+    }
+    if cell_data.is_empty() {
+        return Ok(MatchResult::failed(
+            MatchStatus::NoLandmarksInRange,
+            n,
+            "fewer than 3 landmarks within the visibility range of the search area",
+        ));
+    }
+
+    // Detection triples from the core detections, in a fixed pseudo-random order.
+    let core = core_detections(&search.directions, options.max_core_detections);
+    let mut triples = Vec::new();
+    for x in 0..core.len() {
+        for y in x + 1..core.len() {
+            for z in y + 1..core.len() {
+                let t = [core[x], core[y], core[z]];
+                let ok = (0..3).all(|p| {
+                    angle_between(&search.directions[t[p]], &search.directions[t[(p + 1) % 3]])
+                        >= MIN_TRIPLE_ANGLE_RAD
+                });
+                if ok {
+                    triples.push(t);
+                }
+            }
+        }
+    }
+    shuffle(&mut triples, options.seed);
+    triples.truncate(options.max_detection_triples);
+
+    let position_margin = options.visibility_range_m * 2.0 * search.noise;
+    'triples: for (t, &[a, b, c]) in triples.iter().enumerate() {
+        let bearings = [
+            search.directions[a],
+            search.directions[b],
+            search.directions[c],
+        ];
+        let det_b = bearings[0].dot(&bearings[1].cross(&bearings[2]));
+        // The orientation test is used only when the sign of the detections' determinant is
+        // beyond the noise (each bearing moves by at most `noise`).
+        let det_b_reliable = det_b.abs() > 3.0 * search.noise;
+        for (centre, cands, angles, indices) in &cell_data {
+            let m = cands.len();
+            let words = m.div_ceil(64);
+            let ab = search.pair_table(cands, angles, a, b, words);
+            let ac = search.pair_table(cands, angles, a, c, words);
+            let bc = search.pair_table(cands, angles, b, c, words);
+            for i in 0..m {
+                if ab[i].iter().all(|&w| w == 0) || ac[i].iter().all(|&w| w == 0) {
+                    continue;
+                }
+                for (wj, &word_j) in ab[i].iter().enumerate() {
+                    let mut bits_j = word_j;
+                    while bits_j != 0 {
+                        let j = wj * 64 + bits_j.trailing_zeros() as usize;
+                        bits_j &= bits_j - 1;
+                        for wk in 0..words {
+                            let mut bits_k = ac[i][wk] & bc[j][wk];
+                            while bits_k != 0 {
+                                let k = wk * 64 + bits_k.trailing_zeros() as usize;
+                                bits_k &= bits_k - 1;
+                                if k == i || k == j {
+                                    continue;
+                                }
+                                let points = [
+                                    db.landmarks()[cands[i].index].position_in_world,
+                                    db.landmarks()[cands[j].index].position_in_world,
+                                    db.landmarks()[cands[k].index].position_in_world,
+                                ];
+                                if det_b_reliable {
+                                    let normal =
+                                        (points[1] - points[0]).cross(&(points[2] - points[0]));
+                                    let nn = normal.norm();
+                                    if nn > 0.0
+                                        && (normal.dot(&(centre - points[0])) / nn).abs() > radius
+                                    {
+                                        let det_l = cands[i]
+                                            .direction
+                                            .dot(&cands[j].direction.cross(&cands[k].direction));
+                                        if det_l * det_b < 0.0 {
+                                            continue;
+                                        }
+                                    }
+                                }
+                                for pose in p3p(&bearings, &points) {
+                                    if (pose.translation.vector - centre).norm()
+                                        > radius + position_margin
+                                    {
+                                        continue;
+                                    }
+                                    search.hypotheses += 1;
+                                    // Only hypotheses that could be the best or a close
+                                    // runner-up are worth scoring to the end.
+                                    let best = search.kept.first().map_or(0, |h| h.inliers);
+                                    let needed =
+                                        best.saturating_sub(options.ambiguity_margin + 1).max(4);
+                                    let (inliers, cost, _) = search.score(
+                                        &pose,
+                                        indices,
+                                        HYPOTHESIS_THRESHOLD_FACTOR,
+                                        needed,
+                                    );
+                                    if inliers >= options.min_inliers.min(4) {
+                                        search.keep(pose, inliers, cost, t);
+                                    }
+                                }
+                                if search.hypotheses >= options.max_hypotheses {
+                                    break 'triples;
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        if search.kept.first().is_some_and(|h| {
+            h.confirmations >= STOP_CONFIRMATIONS && h.inliers >= options.min_inliers
+        }) {
+            break;
+        }
+    }
+    let cells_visited = cell_data.len();
+    let hypotheses = search.hypotheses;
+    let failed = |status, message: String| {
+        let mut r = MatchResult::failed(status, n, message);
+        r.cells = cells_visited;
+        r.hypotheses = hypotheses;
+        r
+    };
+
+    // Refine the best; the runner-up is the next whose refined pose is distinct.
+    let kept = search.kept.clone();
+    let Some(best_hypothesis) = kept.first() else {
+        return Ok(failed(
+            MatchStatus::NoMatch,
+            "no hypothesis consistent with the detections".to_string(),
+        ));
+    };
+    let Some((pose, covariance, rms, best_score, assignment)) =
+        search.refine(&best_hypothesis.pose)
+    else {
+        return Ok(failed(
+            MatchStatus::NoMatch,
+            "the best hypothesis did not refine".to_string(),
+        ));
+    };
+    let mut runner_up: Option<(usize, Pose)> = None;
+    let mut tried = 0;
+    for h in kept.iter().skip(1) {
+        if tried >= MAX_RUNNER_UP_REFINEMENTS {
+            break;
+        }
+        if same_pose(&h.pose, &pose) {
+            continue;
+        }
+        tried += 1;
+        let candidate = match search.refine(&h.pose) {
+            Some((p, _, _, score, _)) if !same_pose(&p, &pose) => (score, p),
+            Some(_) => continue,
+            None => (h.inliers.min(best_score), h.pose),
+        };
+        if runner_up.is_none_or(|r| candidate.0 > r.0) {
+            runner_up = Some(candidate);
+        }
+    }
+    let mut result = MatchResult {
+        status: MatchStatus::Ok,
+        message: String::new(),
+        estimate: None,
+        assignment: vec![None; n],
+        best_score,
+        runner_up_score: runner_up.map(|r| r.0),
+        runner_up_pose: runner_up.map(|r| r.1),
+        cells: cells_visited,
+        hypotheses,
+    };
+    if best_score < options.min_inliers {
+        result.status = MatchStatus::NoMatch;
+        result.message = format!(
+            "the best hypothesis has {best_score} inliers (at least {} needed)",
+            options.min_inliers
+        );
+        return Ok(result);
+    }
+    if let Some((score, _)) = runner_up
+        && score + options.ambiguity_margin > best_score
+    {
+        result.status = MatchStatus::Ambiguous;
+        result.message = format!(
+            "two distinct poses with {best_score} and {score} inliers (margin {} needed)",
+            options.ambiguity_margin
+        );
+        return Ok(result);
+    }
+    result.assignment = assignment;
+    result.estimate = Some(MatchEstimate {
+        world_from_rig: pose,
+        covariance,
+        rms_residual_rad: rms,
+    });
+    Ok(result)
+}
