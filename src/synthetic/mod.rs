@@ -17,6 +17,8 @@ pub mod calibration;
 pub mod calibration_files;
 pub mod pnp;
 pub mod rays;
+pub mod robust;
+pub use robust::{RansacProblemConfig, RansacScene, ransac_problem};
 pub use pnp::{PnpConfig, PnpProblem, RigModel, ladybug_camera_centres, perturb_pose};
 
 use crate::geometry::{Pose, bearing_in_rig, try_unit};
