@@ -275,7 +275,14 @@ impl Estimator for AbsolutePoseEstimator<'_> {
 
     #[inline]
     fn residual2(&self, pose: &Pose, i: usize) -> f64 {
-        let (v, d) = self.world_vectors(pose, i);
+        // In the rig frame: one rotation per datum.
+        let ray = &self.rays[i];
+        let v = pose
+            .rotation
+            .matrix()
+            .tr_mul(&(self.points[i] - pose.translation.vector))
+            - ray.origin;
+        let d = &ray.direction;
         let along = d.dot(&v);
         let len2 = v.norm_squared();
         if !(along > 0.0 && len2 > MIN_RANGE_M * MIN_RANGE_M) {
