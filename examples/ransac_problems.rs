@@ -3,6 +3,7 @@
 //! ```text
 //! cargo run --release --example ransac_problems -- generate N SEED FILE [MIN_RANGE MAX_RANGE]
 //! cargo run --release --example ransac_problems -- solve FILE
+//! cargo run --release --example ransac_problems -- scale SEED
 //! ```
 //!
 //! `generate` writes N problems of each scene of `vgps::synthetic::robust` (the target
@@ -12,6 +13,8 @@
 //! cameras (centre, axis). `solve` reads such a file and, for every problem, times one
 //! `estimate_absolute_pose` and one `compute_fix` (std::time::Instant, after one untimed
 //! pass over all problems) and prints JSON: per scene the times (ms) and position errors (m).
+//! `scale` prints a Markdown table of the median time per frame and iterations of
+//! `estimate_absolute_pose` against the number of bearings and the outlier ratio.
 use nalgebra::{Matrix3, Rotation3, Translation3, Vector3};
 use serde_json::{Value, json};
 use std::time::Instant;
@@ -79,8 +82,11 @@ fn generate(n: usize, seed: u64, file: &str, ranges: Option<(f64, f64)>) {
             json!({"cameras": cameras, "problems": problems}),
         );
     }
-    std::fs::write(file, serde_json::to_string(&Value::Object(out)).expect("json"))
-        .expect("write the problem file");
+    std::fs::write(
+        file,
+        serde_json::to_string(&Value::Object(out)).expect("json"),
+    )
+    .expect("write the problem file");
 }
 
 struct Problem {
@@ -92,10 +98,7 @@ struct Problem {
 fn parse_problem(p: &Value) -> Problem {
     let r: Vec<f64> = serde_json::from_value(p["rotation"].clone()).expect("rotation");
     let rotation = Rotation3::from_matrix_unchecked(Matrix3::from_row_slice(&r));
-    let truth = Pose::from_parts(
-        Translation3::from(parse_v3(&p["translation"])),
-        rotation,
-    );
+    let truth = Pose::from_parts(Translation3::from(parse_v3(&p["translation"])), rotation);
     let origins = p["origins"].as_array().expect("origins");
     let directions = p["directions"].as_array().expect("directions");
     let rays = origins
@@ -190,9 +193,56 @@ fn solve(file: &str) {
     println!("{}", Value::Object(out));
 }
 
+/// Median time per frame (ms) and median iterations of `estimate_absolute_pose` over 64
+/// all-around problems per number of bearings and outlier ratio, as a Markdown table.
+fn scale(seed: u64) {
+    let ns = [25usize, 50, 100, 200, 400];
+    let ratios = [0.0, 0.3, 0.5, 0.7];
+    println!(
+        "| bearings | {} |",
+        ratios
+            .iter()
+            .map(|r| format!("{:.0} % outliers", r * 100.0))
+            .collect::<Vec<_>>()
+            .join(" | ")
+    );
+    println!("|---|{}", "---|".repeat(ratios.len()));
+    for n in ns {
+        let mut cells = Vec::new();
+        for outlier_fraction in ratios {
+            let config = RansacProblemConfig {
+                n_points: n,
+                outlier_fraction,
+                ..RansacProblemConfig::default()
+            };
+            let mut rng = synthetic::rng(seed);
+            let problems: Vec<_> = (0..64).map(|_| ransac_problem(&mut rng, &config)).collect();
+            let options = AbsolutePoseOptions {
+                sigma_rad: config.sigma_rad,
+                ..AbsolutePoseOptions::default()
+            };
+            for p in &problems {
+                let _ = estimate_absolute_pose(&p.rays_in_rig, &p.points_in_world, &options);
+            }
+            let mut ms = Vec::new();
+            let mut iterations = Vec::new();
+            for p in &problems {
+                let start = Instant::now();
+                let r = estimate_absolute_pose(&p.rays_in_rig, &p.points_in_world, &options);
+                ms.push(start.elapsed().as_secs_f64() * 1e3);
+                iterations.push(r.map_or(0, |r| r.iterations));
+            }
+            ms.sort_by(f64::total_cmp);
+            iterations.sort_unstable();
+            cells.push(format!("{:.3} ms ({} it.)", ms[32], iterations[32]));
+        }
+        println!("| {n} | {} |", cells.join(" | "));
+    }
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    let usage = "usage: ransac_problems generate N SEED FILE [MIN_RANGE MAX_RANGE] | solve FILE";
+    let usage = "usage: ransac_problems generate N SEED FILE [MIN_RANGE MAX_RANGE] | solve FILE | scale SEED";
     match args.get(1).map(String::as_str) {
         Some("generate") if args.len() == 5 || args.len() == 7 => {
             let n = args[2].parse().expect("N");
@@ -206,6 +256,7 @@ fn main() {
             generate(n, seed, &args[4], ranges);
         }
         Some("solve") if args.len() == 3 => solve(&args[2]),
+        Some("scale") if args.len() == 3 => scale(args[2].parse().expect("SEED")),
         _ => {
             eprintln!("{usage}");
             std::process::exit(2);

@@ -514,7 +514,7 @@ impl Problem<'_> {
         };
         let mut hypotheses = match hypotheses {
             Ok(h) => h,
-            Err(fix) => return fix,
+            Err(fix) => return *fix,
         };
         hypotheses.sort_by(|a, b| b.count.cmp(&a.count).then(a.cost.total_cmp(&b.cost)));
         let best_count = hypotheses[0].count;
@@ -597,7 +597,7 @@ impl Problem<'_> {
     }
 
     /// Every triple's P3P solutions (within the prior), scored.
-    fn exhaustive_hypotheses(&self) -> Result<Vec<Hypothesis>, Fix> {
+    fn exhaustive_hypotheses(&self) -> Result<Vec<Hypothesis>, Box<Fix>> {
         let n = self.n();
         let mut any_solution = false;
         let mut hypotheses: Vec<Hypothesis> = Vec::new();
@@ -610,7 +610,7 @@ impl Problem<'_> {
             }
         }
         if hypotheses.is_empty() {
-            return Err(if any_solution {
+            return Err(Box::new(if any_solution {
                 Fix::failed(
                     FixStatus::NoSolution,
                     n,
@@ -622,7 +622,7 @@ impl Problem<'_> {
                     n,
                     "P3P has no solution on any triple of observations",
                 )
-            });
+            }));
         }
         Ok(hypotheses)
     }
@@ -644,7 +644,7 @@ impl Problem<'_> {
     /// The robust estimator's pose on all observations, and the best pose it finds on the
     /// observations that pose rejects when they are enough to support a rival (see the
     /// module documentation), both scored on all observations.
-    fn ransac_hypotheses(&self) -> Result<Vec<Hypothesis>, Fix> {
+    fn ransac_hypotheses(&self) -> Result<Vec<Hypothesis>, Box<Fix>> {
         let n = self.n();
         let ransac_options = RansacOptions {
             inlier_threshold: self.options.inlier_threshold_sigmas,
@@ -654,11 +654,11 @@ impl Problem<'_> {
         };
         let all = self
             .estimator(self.rays, self.points, self.sigma_m)
-            .map_err(|e| Fix::failed(FixStatus::NoSolution, n, e.to_string()))?;
+            .map_err(|e| Box::new(Fix::failed(FixStatus::NoSolution, n, e.to_string())))?;
         let result = match ransac(&all, &ransac_options) {
             Ok(result) => result,
             Err(e) => {
-                return Err(if all.rejected_by_prior() > 0 {
+                return Err(Box::new(if all.rejected_by_prior() > 0 {
                     Fix::failed(
                         FixStatus::NoSolution,
                         n,
@@ -670,7 +670,7 @@ impl Problem<'_> {
                         n,
                         format!("P3P gave no pose on any sampled triple ({e})"),
                     )
-                });
+                }));
             }
         };
         let best = self.score(&result.model);
@@ -1127,8 +1127,12 @@ mod tests {
             assert_eq!(fix.status, FixStatus::Ok, "{}", fix.message);
             let again = compute_fix(&p.rays_in_rig, &p.points_in_world, &sigmas, &opts).unwrap();
             assert_eq!(fix, again);
-            let wrongly_kept = (0..100).filter(|&i| fix.inliers[i] && !p.inliers[i]).count();
-            let lost = (0..100).filter(|&i| !fix.inliers[i] && p.inliers[i]).count();
+            let wrongly_kept = (0..100)
+                .filter(|&i| fix.inliers[i] && !p.inliers[i])
+                .count();
+            let lost = (0..100)
+                .filter(|&i| !fix.inliers[i] && p.inliers[i])
+                .count();
             assert!(wrongly_kept <= 1 && lost <= 1, "{wrongly_kept} {lost}");
             let (dp, _) = crate::synthetic::pose_error(
                 &fix.estimate.unwrap().world_from_rig,

@@ -15,7 +15,9 @@ const PROBLEMS: usize = 64;
 
 fn problems(config: &RansacProblemConfig, seed: u64) -> Vec<vgps::synthetic::PnpProblem> {
     let mut r = rng(seed);
-    (0..PROBLEMS).map(|_| ransac_problem(&mut r, config)).collect()
+    (0..PROBLEMS)
+        .map(|_| ransac_problem(&mut r, config))
+        .collect()
 }
 
 /// Benchmarks of `estimate_absolute_pose` and `compute_fix` on many bearings.

@@ -203,7 +203,7 @@ impl<'a> AbsolutePoseEstimator<'a> {
             for &i in indices {
                 let (v, d) = self.world_vectors(&pose, i);
                 let len2 = v.norm_squared();
-                if !(len2 > MIN_RANGE_M * MIN_RANGE_M) {
+                if len2 <= MIN_RANGE_M * MIN_RANGE_M || !len2.is_finite() {
                     continue;
                 }
                 let len = len2.sqrt();
@@ -333,7 +333,8 @@ pub fn estimate_absolute_pose(
     points_in_world: &[Vector3<f64>],
     options: &AbsolutePoseOptions,
 ) -> Result<RansacResult<Pose>, RansacError> {
-    let estimator = AbsolutePoseEstimator::try_new(rays_in_rig, points_in_world, options.sigma_rad)?;
+    let estimator =
+        AbsolutePoseEstimator::try_new(rays_in_rig, points_in_world, options.sigma_rad)?;
     let mut result = ransac(&estimator, &options.ransac)?;
     let indices: Vec<usize> = (0..result.inliers.len())
         .filter(|&i| result.inliers[i])
@@ -479,7 +480,10 @@ mod tests {
             max_iterations: 50,
             ..RansacOptions::default()
         };
-        assert_eq!(ransac(&e, &options), Err(RansacError::NoModel { iterations: 50 }));
+        assert_eq!(
+            ransac(&e, &options),
+            Err(RansacError::NoModel { iterations: 50 })
+        );
         assert!(e.rejected_by_prior() >= 50);
     }
 }

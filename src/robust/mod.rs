@@ -303,7 +303,8 @@ fn local_optimization<E: Estimator + ?Sized>(
             break;
         };
         let (s, c) = score_model(estimator, &refined, threshold2, f64::INFINITY);
-        if !(s < current_score) {
+        // Scores are never NaN (residuals are not): `>=` is the negation of `<`.
+        if s >= current_score {
             break;
         }
         current = refined;
@@ -394,7 +395,7 @@ pub fn ransac<E: Estimator + ?Sized>(
         for model in &models {
             models_scored += 1;
             let (score, count) = score_model(estimator, model, threshold2, best_score);
-            if !(score < best_score) {
+            if score >= best_score {
                 continue;
             }
             let mut candidate = (model.clone(), score, count);
@@ -494,7 +495,11 @@ mod tests {
         let problem = Location(data.clone());
         let a = ransac(&problem, &options).unwrap();
         assert_eq!(a.n_inliers, 60);
-        let mean = (0..200).filter(|i| i % 10 >= 7).map(|i| data[i]).sum::<f64>() / 60.0;
+        let mean = (0..200)
+            .filter(|i| i % 10 >= 7)
+            .map(|i| data[i])
+            .sum::<f64>()
+            / 60.0;
         // LO made the model the inlier mean (exact), not one sampled datum.
         assert!((a.model - mean).abs() < 1e-12, "{} vs {mean}", a.model);
         assert!(a.local_optimizations >= 1);
