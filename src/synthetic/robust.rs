@@ -146,9 +146,14 @@ mod tests {
         assert_eq!(p.inlier_count(), 50);
         for (ray, &c) in p.rays_in_rig.iter().zip(&p.camera_of_point) {
             assert_eq!(ray.origin, cams[c].centre_in_rig);
-            // Nearest camera of the observed direction (inliers: of the true one, within
-            // the noise of it).
-            assert!(cams[c].axis_in_rig.dot(&ray.direction) > 0.4);
+            // The nearest camera of the observed direction (exactly for outliers; for
+            // inliers of the true bearing from the rig origin, so within the noise and the
+            // parallax of the 4 cm offset).
+            let best = cams
+                .iter()
+                .map(|k| k.axis_in_rig.dot(&ray.direction))
+                .fold(f64::NEG_INFINITY, f64::max);
+            assert!(cams[c].axis_in_rig.dot(&ray.direction) > best - 0.02);
         }
     }
 
