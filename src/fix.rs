@@ -8,16 +8,23 @@
 //! - **n = 3**: [`crate::solvers::p3p`](fn@crate::solvers::p3p) gives up to four poses. One solution is used as is;
 //!   with several, a prior (a position and a radius) may pick exactly one; otherwise the
 //!   status is `ambiguous` and the candidates are returned — the fix never guesses.
-//! - **n ≥ 4**: pose hypotheses from P3P on triples (every triple while there are at most
-//!   [`MAX_EXHAUSTIVE_TRIPLES`], otherwise [`FixOptions::random_triples`] random triples from a
-//!   fixed seed, so the result is reproducible), each scored by the number of observations
-//!   whose angular residual is within [`FixOptions::inlier_threshold_sigmas`] standard
-//!   deviations (ties broken by the truncated squared residuals, as in MSAC). The best is
-//!   refined with [`crate::solvers::refine_pose`](fn@crate::solvers::refine_pose) on its inliers, the inliers are re-scored
-//!   against the refined pose and the refinement repeated until they settle. A runner-up
-//!   supported by nearly as many observations (see [`AMBIGUITY_FRACTION`]) whose own refined
-//!   pose is statistically distinct from the best ([`DISTINCT_POSE_CHI2`]) makes the fix
-//!   `ambiguous`. (A full RANSAC with adaptive stopping arrives with the matcher.)
+//! - **n ≥ 4, at most [`MAX_EXHAUSTIVE_TRIPLES`] triples (n ≤ 12)**: P3P on every triple,
+//!   each pose scored by the number of observations whose angular residual is within
+//!   [`FixOptions::inlier_threshold_sigmas`] standard deviations (ties broken by the
+//!   truncated squared residuals, as in MSAC).
+//! - **more observations**: the robust estimator of [`crate::robust`] (MSAC scoring, local
+//!   optimisation on every new best, adaptive termination at 99.99 % confidence, at most
+//!   [`FixOptions::random_triples`] samples from the fixed [`FixOptions::seed`], so the
+//!   result is reproducible) gives the best pose. A rival pose supported by nearly as many
+//!   observations must be supported mostly by observations the best one rejects; when
+//!   those are enough, a second run of the estimator on them looks for it (its iterations
+//!   bounded by the confidence of finding a pose that agrees with the required share).
+//!
+//! In both cases the best pose is refined with [`crate::solvers::refine_pose`](fn@crate::solvers::refine_pose)
+//! on its inliers, the inliers are re-scored against the refined pose and the refinement
+//! repeated until they settle. A runner-up supported by nearly as many observations (see
+//! [`AMBIGUITY_FRACTION`]) whose own refined pose is statistically distinct from the best
+//! ([`DISTINCT_POSE_CHI2`]) makes the fix `ambiguous`.
 //!
 //! The P3P hypotheses use the ray directions only (a central-camera approximation: for a
 //! Ladybug-class rig the camera centres are a few centimetres apart); the scoring, the
@@ -62,10 +69,12 @@
 //! ```
 
 use crate::geometry::{Pose, Ray, angle_between};
+use crate::robust::{
+    AbsolutePoseEstimator, PositionPrior, RansacOptions, ransac, required_iterations,
+};
 use crate::solvers::refine_pose::refine_pose_with_sigmas;
 use crate::solvers::{RefineError, RefineOptions, RobustLoss, p3p};
 use nalgebra::{Matrix6, Point3, Vector3, Vector6};
-use rand::{RngExt, SeedableRng};
 
 /// Observations needed for a fix: a minimal P3P sample.
 pub const MIN_OBSERVATIONS: usize = 3;
@@ -78,10 +87,14 @@ pub const INLIER_THRESHOLD_SIGMAS: f64 = 5.0;
 /// Triples are enumerated exhaustively while there are at most this many (n ≤ 12).
 pub const MAX_EXHAUSTIVE_TRIPLES: usize = 220;
 
-/// Default number of random triples when there are more than [`MAX_EXHAUSTIVE_TRIPLES`].
-pub const DEFAULT_RANDOM_TRIPLES: usize = 300;
+/// Default budget of random triples (iterations of the robust estimator) when there are
+/// more than [`MAX_EXHAUSTIVE_TRIPLES`]: the estimator stops as soon as it is confident
+/// ([`crate::robust::DEFAULT_CONFIDENCE`]), after 69 samples at 50 % outliers; the budget
+/// is reached only when fewer than about 12 % of the observations agree.
+pub const DEFAULT_RANDOM_TRIPLES: usize = 5_000;
 
-/// Default seed of the triple sampler (fixed: the same input gives the same fix).
+/// Default seed of the triple sampler of the robust estimator (fixed: the same input gives
+/// the same fix).
 pub const DEFAULT_SAMPLING_SEED: u64 = 0x7669_7375_616c_6770;
 
 /// A runner-up hypothesis is "close" to the best when its inlier count is at least
@@ -123,9 +136,10 @@ pub struct FixOptions {
     pub inlier_threshold_sigmas: f64,
     /// Optional prior on the position; solutions outside its radius are discarded.
     pub prior: Option<Prior>,
-    /// Number of random triples when the triples are too many to enumerate.
+    /// Most random triples (iterations of the robust estimator) when the triples are too
+    /// many to enumerate; the estimator usually stops earlier, once confident.
     pub random_triples: usize,
-    /// Seed of the random triple sampler.
+    /// Seed of the robust estimator's triple sampler.
     pub seed: u64,
 }
 
@@ -493,31 +507,15 @@ impl Problem<'_> {
     /// Four or more observations: hypothesise, score, refine, check for ambiguity.
     fn overdetermined(&self) -> Fix {
         let n = self.n();
-        let mut any_solution = false;
-        let mut hypotheses: Vec<Hypothesis> = Vec::new();
-        for triple in self.triples() {
-            for pose in self.p3p(triple) {
-                any_solution = true;
-                if self.within_prior(&pose) {
-                    hypotheses.push(self.score(&pose));
-                }
-            }
-        }
-        if hypotheses.is_empty() {
-            return if any_solution {
-                Fix::failed(
-                    FixStatus::NoSolution,
-                    n,
-                    "no P3P solution lies within the prior radius",
-                )
-            } else {
-                Fix::failed(
-                    FixStatus::DegenerateGeometry,
-                    n,
-                    "P3P has no solution on any triple of observations",
-                )
-            };
-        }
+        let hypotheses = if n * (n - 1) * (n - 2) / 6 <= MAX_EXHAUSTIVE_TRIPLES {
+            self.exhaustive_hypotheses()
+        } else {
+            self.ransac_hypotheses()
+        };
+        let mut hypotheses = match hypotheses {
+            Ok(h) => h,
+            Err(fix) => return *fix,
+        };
         hypotheses.sort_by(|a, b| b.count.cmp(&a.count).then(a.cost.total_cmp(&b.cost)));
         let best_count = hypotheses[0].count;
         if best_count <= MIN_OBSERVATIONS {
@@ -538,8 +536,7 @@ impl Problem<'_> {
                 "the refined pose lies outside the prior radius",
             );
         }
-        let margin = (AMBIGUITY_FRACTION * best.count as f64).floor() as usize;
-        let close = best.count.saturating_sub(margin).max(MIN_OBSERVATIONS + 1);
+        let close = close_count(best.count);
         let best_information = information(&best.covariance);
         let mut candidates = vec![best.pose];
         let mut refinements = 0;
@@ -599,38 +596,122 @@ impl Problem<'_> {
         }
     }
 
-    /// The triples to try: all of them, or a reproducible random set.
-    fn triples(&self) -> Vec<[usize; 3]> {
+    /// Every triple's P3P solutions (within the prior), scored.
+    fn exhaustive_hypotheses(&self) -> Result<Vec<Hypothesis>, Box<Fix>> {
         let n = self.n();
-        let total = n * (n - 1) * (n - 2) / 6;
-        if total <= MAX_EXHAUSTIVE_TRIPLES {
-            let mut out = Vec::with_capacity(total);
-            for i in 0..n {
-                for j in i + 1..n {
-                    for k in j + 1..n {
-                        out.push([i, j, k]);
-                    }
+        let mut any_solution = false;
+        let mut hypotheses: Vec<Hypothesis> = Vec::new();
+        for triple in self.triples() {
+            for pose in self.p3p(triple) {
+                any_solution = true;
+                if self.within_prior(&pose) {
+                    hypotheses.push(self.score(&pose));
                 }
             }
-            return out;
         }
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(self.options.seed);
-        (0..self.options.random_triples)
-            .map(|_| {
-                let i = rng.random_range(0..n);
-                let mut j = rng.random_range(0..n - 1);
-                if j >= i {
-                    j += 1;
+        if hypotheses.is_empty() {
+            return Err(Box::new(if any_solution {
+                Fix::failed(
+                    FixStatus::NoSolution,
+                    n,
+                    "no P3P solution lies within the prior radius",
+                )
+            } else {
+                Fix::failed(
+                    FixStatus::DegenerateGeometry,
+                    n,
+                    "P3P has no solution on any triple of observations",
+                )
+            }));
+        }
+        Ok(hypotheses)
+    }
+
+    /// The robust estimator's problem on the given observations.
+    fn estimator<'b>(
+        &self,
+        rays: &'b [Ray],
+        points: &'b [Vector3<f64>],
+        sigma_m: &[f64],
+    ) -> Result<AbsolutePoseEstimator<'b>, crate::robust::RansacError> {
+        Ok(
+            AbsolutePoseEstimator::try_new(rays, points, self.options.sigma_rad)?
+                .with_landmark_sigmas(sigma_m)?
+                .with_prior(self.options.prior.map(prior_of)),
+        )
+    }
+
+    /// The robust estimator's pose on all observations, and the best pose it finds on the
+    /// observations that pose rejects when they are enough to support a rival (see the
+    /// module documentation), both scored on all observations.
+    fn ransac_hypotheses(&self) -> Result<Vec<Hypothesis>, Box<Fix>> {
+        let n = self.n();
+        let ransac_options = RansacOptions {
+            inlier_threshold: self.options.inlier_threshold_sigmas,
+            max_iterations: self.options.random_triples.max(1),
+            seed: self.options.seed,
+            ..RansacOptions::default()
+        };
+        let all = self
+            .estimator(self.rays, self.points, self.sigma_m)
+            .map_err(|e| Box::new(Fix::failed(FixStatus::NoSolution, n, e.to_string())))?;
+        let result = match ransac(&all, &ransac_options) {
+            Ok(result) => result,
+            Err(e) => {
+                return Err(Box::new(if all.rejected_by_prior() > 0 {
+                    Fix::failed(
+                        FixStatus::NoSolution,
+                        n,
+                        "no P3P solution lies within the prior radius",
+                    )
+                } else {
+                    Fix::failed(
+                        FixStatus::DegenerateGeometry,
+                        n,
+                        format!("P3P gave no pose on any sampled triple ({e})"),
+                    )
+                }));
+            }
+        };
+        let best = self.score(&result.model);
+        let close = close_count(best.count);
+        let rest: Vec<usize> = (0..n).filter(|&i| !best.inliers[i]).collect();
+        let mut hypotheses = vec![best];
+        if rest.len() >= close && close > MIN_OBSERVATIONS {
+            // A rival supported by at least `close` observations has at least that many
+            // among the rejected ones (up to the few both fit): a fraction close/|rest| of
+            // them, found with the estimator's confidence within the bound below.
+            let rays: Vec<Ray> = rest.iter().map(|&i| self.rays[i]).collect();
+            let points: Vec<Vector3<f64>> = rest.iter().map(|&i| self.points[i]).collect();
+            let sigma_m: Vec<f64> = rest.iter().map(|&i| self.sigma_m[i]).collect();
+            let ratio = close as f64 / rest.len() as f64;
+            let bound = required_iterations(ratio, MIN_OBSERVATIONS, ransac_options.confidence);
+            let rival_options = RansacOptions {
+                max_iterations: bound.clamp(1, ransac_options.max_iterations),
+                min_iterations: 0,
+                ..ransac_options
+            };
+            if let Ok(est) = self.estimator(&rays, &points, &sigma_m)
+                && let Ok(rival) = ransac(&est, &rival_options)
+            {
+                hypotheses.push(self.score(&rival.model));
+            }
+        }
+        Ok(hypotheses)
+    }
+
+    /// Every triple of observations.
+    fn triples(&self) -> Vec<[usize; 3]> {
+        let n = self.n();
+        let mut out = Vec::with_capacity(n * n.saturating_sub(1) * n.saturating_sub(2) / 6);
+        for i in 0..n {
+            for j in i + 1..n {
+                for k in j + 1..n {
+                    out.push([i, j, k]);
                 }
-                let mut k = rng.random_range(0..n - 2);
-                for m in [i.min(j), i.max(j)] {
-                    if k >= m {
-                        k += 1;
-                    }
-                }
-                [i, j, k]
-            })
-            .collect()
+            }
+        }
+        out
     }
 
     /// Refines a hypothesis on its inliers (each weighted by its effective σ), re-scores,
@@ -730,6 +811,21 @@ impl Problem<'_> {
                 candidates: Vec::new(),
             },
         }
+    }
+}
+
+/// The smallest inlier count of a runner-up "close" to a best pose with `count` inliers
+/// (see [`AMBIGUITY_FRACTION`]).
+fn close_count(count: usize) -> usize {
+    let margin = (AMBIGUITY_FRACTION * count as f64).floor() as usize;
+    count.saturating_sub(margin).max(MIN_OBSERVATIONS + 1)
+}
+
+/// The estimator's form of the fix's prior.
+fn prior_of(prior: Prior) -> PositionPrior {
+    PositionPrior {
+        position_in_world: prior.position_in_world,
+        radius_m: prior.radius_m,
     }
 }
 
@@ -1000,30 +1096,125 @@ mod tests {
     }
 
     #[test]
-    fn random_triples_are_distinct_and_reproducible() {
-        let rays = vec![Ray::try_new(Vector3::zeros(), Vector3::x()).unwrap(); 30];
-        let points = vec![Vector3::zeros(); 30];
-        let sigmas = vec![0.0; 30];
+    fn triples_are_every_combination() {
+        let rays = vec![Ray::try_new(Vector3::zeros(), Vector3::x()).unwrap(); 7];
+        let points = vec![Vector3::zeros(); 7];
+        let sigmas = vec![0.0; 7];
         let opts = FixOptions::default();
-        let problem = Problem {
+        let few = Problem {
             rays: &rays,
             points: &points,
             sigma_m: &sigmas,
             options: &opts,
         };
-        let a = problem.triples();
-        assert_eq!(a.len(), DEFAULT_RANDOM_TRIPLES);
-        assert!(
-            a.iter()
-                .all(|t| t[0] != t[1] && t[0] != t[2] && t[1] != t[2] && t.iter().all(|&i| i < 30))
-        );
-        assert_eq!(a, problem.triples());
-        let few = Problem {
-            rays: &rays[..7],
-            points: &points[..7],
-            sigma_m: &sigmas[..7],
-            options: &opts,
-        };
-        assert_eq!(few.triples().len(), 35);
+        let t = few.triples();
+        assert_eq!(t.len(), 35);
+        assert!(t.iter().all(|t| t[0] < t[1] && t[1] < t[2] && t[2] < 7));
+    }
+
+    /// Many observations (the robust-estimator path): half of them wrong, the fix is found,
+    /// reproducible, and its inliers are the right ones.
+    #[test]
+    fn many_observations_with_half_outliers_are_reproducible() {
+        use crate::synthetic::{RansacProblemConfig, ransac_problem};
+        let config = RansacProblemConfig::default();
+        let mut r = rng(17);
+        for _ in 0..10 {
+            let p = ransac_problem(&mut r, &config);
+            let sigmas = vec![0.0; p.rays_in_rig.len()];
+            let opts = options(config.sigma_rad);
+            let fix = compute_fix(&p.rays_in_rig, &p.points_in_world, &sigmas, &opts).unwrap();
+            assert_eq!(fix.status, FixStatus::Ok, "{}", fix.message);
+            let again = compute_fix(&p.rays_in_rig, &p.points_in_world, &sigmas, &opts).unwrap();
+            assert_eq!(fix, again);
+            let wrongly_kept = (0..100)
+                .filter(|&i| fix.inliers[i] && !p.inliers[i])
+                .count();
+            let lost = (0..100)
+                .filter(|&i| !fix.inliers[i] && p.inliers[i])
+                .count();
+            assert!(wrongly_kept <= 1 && lost <= 1, "{wrongly_kept} {lost}");
+            let (dp, _) = crate::synthetic::pose_error(
+                &fix.estimate.unwrap().world_from_rig,
+                &p.world_from_rig,
+            );
+            assert!(dp < 0.1, "{dp} m");
+        }
+    }
+
+    /// Two poses each supported by half of many observations: the second run of the
+    /// estimator on the rejected observations finds the rival.
+    #[test]
+    fn many_observations_from_two_poses_are_ambiguous() {
+        let mut r = rng(18);
+        let sigma = 5e-4;
+        let (pose_a, points_a) = scene(&mut r, 15);
+        let (pose_b, points_b) = scene(&mut r, 15);
+        let mut all_rays = rays(&mut r, &pose_a, &points_a, sigma);
+        all_rays.extend(rays(&mut r, &pose_b, &points_b, sigma));
+        let points: Vec<Vector3<f64>> = points_a.into_iter().chain(points_b).collect();
+        let fix = compute_fix(&all_rays, &points, &[0.0; 30], &options(sigma)).unwrap();
+        assert_eq!(fix.status, FixStatus::Ambiguous, "{}", fix.message);
+        assert_eq!(fix.candidates.len(), 2);
+        // Three more observations of pose A: no longer close (15 vs 18).
+        let mut more_rays = all_rays[..15].to_vec();
+        let mut more_points = points[..15].to_vec();
+        for k in 0..3 {
+            let extra = pose_a.translation.vector + Vector3::new(5.0 + k as f64, 30.0, -4.0);
+            more_rays.push(
+                Ray::try_new(Vector3::zeros(), bearing_in_rig(&pose_a, &extra).unwrap()).unwrap(),
+            );
+            more_points.push(extra);
+        }
+        more_rays.extend_from_slice(&all_rays[15..]);
+        more_points.extend_from_slice(&points[15..]);
+        let fix = compute_fix(&more_rays, &more_points, &[0.0; 33], &options(sigma)).unwrap();
+        assert_eq!(fix.status, FixStatus::Ok, "{}", fix.message);
+        let (dp, _) = crate::synthetic::pose_error(&fix.estimate.unwrap().world_from_rig, &pose_a);
+        assert!(dp < 0.1);
+    }
+
+    /// Integrity: over many problems with 20–100 bearings and 0–70 % outliers (fixed seed),
+    /// a fix with status `ok` more than [`WRONG_FIX_M`] from the truth must not occur (the
+    /// target is at most 1 in 10,000); most problems give a fix.
+    #[test]
+    fn wrong_fixes_are_rare() {
+        use crate::synthetic::{RansacProblemConfig, RansacScene, ransac_problem};
+        const WRONG_FIX_M: f64 = 5.0;
+        const TRIALS: usize = 10_000;
+        let mut r = rng(19);
+        let (mut ok, mut wrong) = (0, 0);
+        for t in 0..TRIALS {
+            let config = RansacProblemConfig {
+                scene: if t % 2 == 0 {
+                    RansacScene::AllAround
+                } else {
+                    RansacScene::FrontHemisphere
+                },
+                n_points: [20, 30, 50, 100][t % 4],
+                outlier_fraction: [0.0, 0.3, 0.5, 0.7][(t / 4) % 4],
+                ..RansacProblemConfig::default()
+            };
+            let p = ransac_problem(&mut r, &config);
+            let n = p.rays_in_rig.len();
+            let fix = compute_fix(
+                &p.rays_in_rig,
+                &p.points_in_world,
+                &vec![0.0; n],
+                &options(config.sigma_rad),
+            )
+            .unwrap();
+            if fix.status == FixStatus::Ok {
+                ok += 1;
+                let e = fix.estimate.unwrap();
+                let (dp, _) = crate::synthetic::pose_error(&e.world_from_rig, &p.world_from_rig);
+                if dp > WRONG_FIX_M {
+                    wrong += 1;
+                }
+            }
+        }
+        eprintln!("{ok} of {TRIALS} fixes ok, {wrong} wrong (> {WRONG_FIX_M} m)");
+        assert!(wrong <= TRIALS / 10_000, "{wrong} wrong fixes in {TRIALS}");
+        assert!(ok >= TRIALS * 99 / 100, "only {ok} of {TRIALS} fixes");
     }
 }

@@ -17,6 +17,8 @@
 //!   camera rig, and the calibration file formats.
 //! - [`fix`]: a fix from bearings to known landmarks (hypotheses, inliers, refinement,
 //!   ambiguity and degeneracy statuses).
+//! - [`robust`]: the generic robust estimator (MSAC + local optimisation, adaptive
+//!   termination) and robust absolute pose with known correspondences.
 //! - [`synthetic`]: the shared synthetic-problem generator used by tests and benchmarks.
 //! - [`io`]: readers for the CSV inputs, with errors that name file, line and field.
 //! - [`report`]: the outputs of `vgps replay` (statistics, tables, track files, plots).
@@ -55,6 +57,7 @@ pub mod geometry;
 pub mod io;
 pub mod matcher;
 pub mod report;
+pub mod robust;
 pub mod solvers;
 pub mod synthetic;
 pub mod triangulation;

@@ -8,6 +8,7 @@ mod geo;
 mod p3p;
 mod p3p_cosines;
 mod refine_pose;
+mod robust;
 mod synthetic;
 mod triangulation;
 
@@ -19,6 +20,7 @@ criterion_group!(
     p3p::benches,
     p3p_cosines::benches,
     refine_pose::benches,
+    robust::benches,
     synthetic::benches,
     triangulation::benches,
 );

@@ -18,7 +18,9 @@ pub mod calibration_files;
 pub mod matcher;
 pub mod pnp;
 pub mod rays;
+pub mod robust;
 pub use pnp::{PnpConfig, PnpProblem, RigModel, ladybug_camera_centres, perturb_pose};
+pub use robust::{RansacProblemConfig, RansacScene, ransac_problem};
 
 use crate::geometry::{Pose, bearing_in_rig, try_unit};
 use nalgebra::{Rotation3, Translation3, UnitQuaternion, Vector3};
