@@ -48,10 +48,12 @@
 pub mod attitude;
 pub mod calibration;
 pub mod cli;
+pub mod drive;
 pub mod fix;
 pub mod geo;
 pub mod geometry;
 pub mod io;
+pub mod simulate;
 pub mod solvers;
 pub mod synthetic;
 pub mod triangulation;
