@@ -227,7 +227,7 @@ impl Scenario {
             pixel_sigma_px: 0.5,
             miss_rate: 0.1,
             false_fraction: 0.2,
-            survey_gap_m: 320.0,
+            survey_gap_m: 330.0,
             survey_gap_at: 0.35,
             canyon_outage_m: 120.0,
             canyon_outage_at: 0.82,
@@ -505,7 +505,7 @@ pub fn simulate(sc: &Scenario) -> Result<SimulatedDrive, SimulateError> {
     let mut world = World::generate(&mut rng_world, &city, (i0 - 1, i1 + 1, j0 - 1, j1 + 1));
 
     // Outages: the survey gap, then the canyon.
-    let gap_len = sc.survey_gap_m.min(0.3 * length);
+    let gap_len = sc.survey_gap_m.min(0.4 * length);
     let gap_start = sc.survey_gap_at * length;
     let canyon_len = sc.canyon_outage_m.min(0.1 * length);
     let canyon_start = (sc.canyon_outage_at * length).min(length - canyon_len);

@@ -324,7 +324,8 @@ mod tests {
         assert!(!b.blocks(&a, &Vector3::new(-1.0, 5.0, 2.0)));
         assert!(!b.blocks(&a, &Vector3::new(-5.0, 20.0, 2.0)));
         // Over the roof.
-        assert!(!b.blocks(&a, &Vector3::new(15.0, 5.0, 30.0)));
+        assert!(!b.blocks(&a, &Vector3::new(15.0, 5.0, 60.0)));
+        assert!(b.blocks(&a, &Vector3::new(15.0, 5.0, 30.0)));
         // Its own near corner (just outside) is visible; the far one is not.
         assert!(!b.blocks(&a, &Vector3::new(-0.05, -0.05, 10.05)));
         assert!(b.blocks(&a, &Vector3::new(10.05, 10.05, 9.0)));
