@@ -43,10 +43,16 @@ fn parse_origin(text: &str) -> Result<Geodetic, String> {
     let [lat, lon] = parts.as_slice() else {
         return Err(format!("`{text}` is not LAT,LON"));
     };
-    let lat: f64 = lat.parse().map_err(|_| format!("latitude `{lat}` is not a number"))?;
-    let lon: f64 = lon.parse().map_err(|_| format!("longitude `{lon}` is not a number"))?;
+    let lat: f64 = lat
+        .parse()
+        .map_err(|_| format!("latitude `{lat}` is not a number"))?;
+    let lon: f64 = lon
+        .parse()
+        .map_err(|_| format!("longitude `{lon}` is not a number"))?;
     if lat.abs() > 85.0 || lon.abs() > 180.0 {
-        return Err(format!("origin {lat},{lon} is outside |lat| ≤ 85, |lon| ≤ 180"));
+        return Err(format!(
+            "origin {lat},{lon} is outside |lat| ≤ 85, |lon| ≤ 180"
+        ));
     }
     Geodetic::try_new(lat, lon, 0.0).map_err(|e| e.to_string())
 }
@@ -75,7 +81,8 @@ pub fn run(args: &SimulateArgs, out: &mut dyn Write) -> Result<(), CliError> {
         scenario.calibration_name = path.display().to_string();
     }
     let started = std::time::Instant::now();
-    let drive = simulate(&scenario).map_err(|e| CliError::Calibration(format!("vgps simulate: {e}")))?;
+    let drive =
+        simulate(&scenario).map_err(|e| CliError::Calibration(format!("vgps simulate: {e}")))?;
     drive
         .write(&args.out)
         .map_err(|e| CliError::Output(std::io::Error::other(e.to_string())))?;

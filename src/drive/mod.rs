@@ -31,9 +31,8 @@ mod tables;
 
 pub use nmea::{GnssFix, GnssRecord, NmeaStats};
 pub use tables::{
-    Detection, Frame, MAX_IMAGE_COLUMNS, QUATERNION_NORM_TOLERANCE, TruthRecord,
-    detections_to_csv, frames_from_text, frames_to_csv, landmarks_to_csv, truth_from_text,
-    truth_to_csv,
+    Detection, Frame, MAX_IMAGE_COLUMNS, QUATERNION_NORM_TOLERANCE, TruthRecord, detections_to_csv,
+    frames_from_text, frames_to_csv, landmarks_to_csv, truth_from_text, truth_to_csv,
 };
 
 use crate::calibration::{LoadError, Rig};
@@ -164,8 +163,8 @@ impl Manifest {
                 1 + text[..at].bytes().filter(|&b| b == b'\n').count() as u64
             })
         };
-        let value: serde_json::Value = serde_json::from_str(text)
-            .map_err(|e| err(e.line() as u64, "json", e.to_string()))?;
+        let value: serde_json::Value =
+            serde_json::from_str(text).map_err(|e| err(e.line() as u64, "json", e.to_string()))?;
         let Some(object) = value.as_object() else {
             return Err(err(1, "json", "the manifest is not a JSON object".into()));
         };
@@ -185,7 +184,11 @@ impl Manifest {
         }
         let version = match object.get("version") {
             Some(v) => v.as_u64().ok_or_else(|| {
-                err(line_of("version"), "version", format!("`{v}` is not an integer"))
+                err(
+                    line_of("version"),
+                    "version",
+                    format!("`{v}` is not an integer"),
+                )
             })?,
             None => return Err(err(1, "version", "required key is missing".into())),
         };
@@ -350,9 +353,10 @@ impl Drive {
         for row in rows {
             match row {
                 DetectionRow::Ok(d) if self.frame_index(d.frame).is_some() => good.push(d),
-                DetectionRow::Ok(d) => self
-                    .orphans
-                    .push(format!("detection of frame {} which is not in the frames file", d.frame)),
+                DetectionRow::Ok(d) => self.orphans.push(format!(
+                    "detection of frame {} which is not in the frames file",
+                    d.frame
+                )),
                 DetectionRow::Bad { frame, message } if self.frame_index(frame).is_some() => {
                     self.bad_rows.entry(frame).or_default().push(message);
                 }

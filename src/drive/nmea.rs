@@ -98,7 +98,8 @@ impl NmeaStats {
 
     fn note(&mut self, line: usize, reason: impl Into<String>) {
         if self.messages.len() < MAX_MESSAGES {
-            self.messages.push(format!("line {line}: {}", reason.into()));
+            self.messages
+                .push(format!("line {line}: {}", reason.into()));
         }
     }
 }
@@ -476,7 +477,8 @@ mod tests {
         let text = format!("${rmc}*{:02X}\n${body}*47\n", checksum(rmc));
         let (r, s) = read_nmea(&text);
         assert_eq!((r.len(), s.used, s.skipped()), (1, 2, 0));
-        let expected = days_from_civil(1994, 3, 23) as f64 * DAY_S + 12.0 * 3600.0 + 35.0 * 60.0 + 19.0;
+        let expected =
+            days_from_civil(1994, 3, 23) as f64 * DAY_S + 12.0 * 3600.0 + 35.0 * 60.0 + 19.0;
         assert_eq!(r[0].time_s, expected);
         let p = r[0].fix.unwrap().position;
         assert!((p.lat_deg - (48.0 + 7.038 / 60.0)).abs() < 1e-12);
@@ -488,10 +490,26 @@ mod tests {
     fn round_trip_with_signs_outage_and_heading() {
         let t0 = 1_778_794_200.0;
         let records = vec![
-            GnssRecord { time_s: t0, fix: fix(37.7793, -122.4193, -12.25), heading_deg: Some(359.99) },
-            GnssRecord { time_s: t0 + 0.2, fix: None, heading_deg: None },
-            GnssRecord { time_s: t0 + 0.4, fix: fix(-33.8568, 151.2153, 5.0), heading_deg: None },
-            GnssRecord { time_s: t0 + 0.6, fix: fix(0.5, -0.25, 100.0), heading_deg: Some(0.0) },
+            GnssRecord {
+                time_s: t0,
+                fix: fix(37.7793, -122.4193, -12.25),
+                heading_deg: Some(359.99),
+            },
+            GnssRecord {
+                time_s: t0 + 0.2,
+                fix: None,
+                heading_deg: None,
+            },
+            GnssRecord {
+                time_s: t0 + 0.4,
+                fix: fix(-33.8568, 151.2153, 5.0),
+                heading_deg: None,
+            },
+            GnssRecord {
+                time_s: t0 + 0.6,
+                fix: fix(0.5, -0.25, 100.0),
+                heading_deg: Some(0.0),
+            },
         ];
         let text = write_nmea(&records, -32.0);
         let (back, stats) = read_nmea(&text);
@@ -524,12 +542,19 @@ mod tests {
     fn bad_checksum_garbage_and_truncation_are_counted_not_fatal() {
         let t0 = 1_778_794_200.0;
         let records: Vec<GnssRecord> = (0..4)
-            .map(|k| GnssRecord { time_s: t0 + f64::from(k), fix: fix(37.0, -122.0, 1.0), heading_deg: Some(10.0) })
+            .map(|k| GnssRecord {
+                time_s: t0 + f64::from(k),
+                fix: fix(37.0, -122.0, 1.0),
+                heading_deg: Some(10.0),
+            })
             .collect();
         let text = write_nmea(&records, 0.0);
         let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
         // Epoch 1's GGA gets a corrupted digit (checksum no longer matches).
-        let gga1 = lines.iter().position(|l| l.starts_with("$GPGGA,213001")).unwrap();
+        let gga1 = lines
+            .iter()
+            .position(|l| l.starts_with("$GPGGA,213001"))
+            .unwrap();
         lines[gga1] = lines[gga1].replacen("37", "38", 1);
         lines.insert(3, "\u{0}\u{7f}binary noise".to_string());
         let gsv = "GPGSV,3,1,11,03,03,111,00";
@@ -553,9 +578,21 @@ mod tests {
         // 23:59:59.80 on 31 Dec 2025 then 00:00:00.00 on 1 Jan 2026.
         let midnight = days_from_civil(2026, 1, 1) as f64 * DAY_S;
         let records = vec![
-            GnssRecord { time_s: midnight - 0.2, fix: fix(37.0, -122.0, 1.0), heading_deg: None },
-            GnssRecord { time_s: midnight, fix: fix(37.0, -122.0, 1.0), heading_deg: None },
-            GnssRecord { time_s: midnight + 0.2, fix: None, heading_deg: None },
+            GnssRecord {
+                time_s: midnight - 0.2,
+                fix: fix(37.0, -122.0, 1.0),
+                heading_deg: None,
+            },
+            GnssRecord {
+                time_s: midnight,
+                fix: fix(37.0, -122.0, 1.0),
+                heading_deg: None,
+            },
+            GnssRecord {
+                time_s: midnight + 0.2,
+                fix: None,
+                heading_deg: None,
+            },
         ];
         let text = write_nmea(&records, 0.0);
         assert!(text.contains(",311225,") && text.contains(",010126,"));
@@ -592,7 +629,11 @@ mod tests {
     fn invalid_fields_are_counted() {
         let bad = "GPGGA,253000.00,3700.0,N,12200.0,W,1,08,0.9,1.0,M,0.0,M,,";
         let rmc = "GPRMC,000000.00,A,,,,,,,010126,,,A";
-        let text = format!("${rmc}*{:02X}\n${bad}*{:02X}\n", checksum(rmc), checksum(bad));
+        let text = format!(
+            "${rmc}*{:02X}\n${bad}*{:02X}\n",
+            checksum(rmc),
+            checksum(bad)
+        );
         let (back, stats) = read_nmea(&text);
         assert!(back.is_empty());
         assert_eq!((stats.invalid, stats.used), (1, 1));

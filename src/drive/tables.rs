@@ -11,8 +11,9 @@ pub const QUATERNION_NORM_TOLERANCE: f64 = 1e-6;
 /// Number of cameras a frame may name images for (`image_0` … `image_5`).
 pub const MAX_IMAGE_COLUMNS: usize = 6;
 /// The image column names per camera.
-const IMAGE_COLUMNS: [&str; MAX_IMAGE_COLUMNS] =
-    ["image_0", "image_1", "image_2", "image_3", "image_4", "image_5"];
+const IMAGE_COLUMNS: [&str; MAX_IMAGE_COLUMNS] = [
+    "image_0", "image_1", "image_2", "image_3", "image_4", "image_5",
+];
 
 /// One frame of the drive.
 #[derive(Clone, Debug, PartialEq)]
@@ -93,7 +94,10 @@ pub fn frames_from_text(path: &Path, text: &str) -> Result<Vec<Frame>, InputErro
         {
             return Err(row.error(
                 "frame",
-                format!("frame {frame} does not follow frame {} (frames must increase)", prev.frame),
+                format!(
+                    "frame {frame} does not follow frame {} (frames must increase)",
+                    prev.frame
+                ),
             ));
         }
         let time_s = row.required_f64("time_s")?;
@@ -101,7 +105,11 @@ pub fn frames_from_text(path: &Path, text: &str) -> Result<Vec<Frame>, InputErro
             .iter()
             .map(|c| row.optional_str(c).map(str::to_string))
             .collect();
-        frames.push(Frame { frame, time_s, images });
+        frames.push(Frame {
+            frame,
+            time_s,
+            images,
+        });
     }
     Ok(frames)
 }
@@ -157,7 +165,10 @@ pub(crate) fn detections_from_text(
                 .ok()
                 .filter(|&c| c < cameras)
                 .ok_or_else(|| {
-                    row.error("camera", format!("camera {camera} is not in the rig (it has {cameras})"))
+                    row.error(
+                        "camera",
+                        format!("camera {camera} is not in the rig (it has {cameras})"),
+                    )
                 })?;
             let strength = row.optional_f64("strength")?;
             Ok(Detection {
@@ -171,7 +182,10 @@ pub(crate) fn detections_from_text(
         })();
         out.push(match parsed {
             Ok(d) => DetectionRow::Ok(d),
-            Err(e) => DetectionRow::Bad { frame, message: e.to_string() },
+            Err(e) => DetectionRow::Bad {
+                frame,
+                message: e.to_string(),
+            },
         });
     }
     Ok(out)
@@ -204,11 +218,17 @@ pub fn truth_from_text(
         }
         let lat = row.required_f64("lat")?;
         if lat.abs() > crate::io::MAX_ABS_LAT_DEG {
-            return Err(row.error("lat", format!("latitude {lat} is outside [-90, 90] degrees")));
+            return Err(row.error(
+                "lat",
+                format!("latitude {lat} is outside [-90, 90] degrees"),
+            ));
         }
         let lon = row.required_f64("lon")?;
         if lon.abs() > crate::io::MAX_ABS_LON_DEG {
-            return Err(row.error("lon", format!("longitude {lon} is outside [-180, 180] degrees")));
+            return Err(row.error(
+                "lon",
+                format!("longitude {lon} is outside [-180, 180] degrees"),
+            ));
         }
         let alt = row.required_f64("alt")?;
         let position = crate::geo::Geodetic::try_new(lat, lon, alt)

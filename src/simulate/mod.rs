@@ -38,8 +38,8 @@ pub use world::{
     World, WorldLandmark, observe, project,
 };
 
-use crate::calibration::{Pixel, Rig, in_image_rectangle};
 use crate::calibration::{CameraModel, LoadError};
+use crate::calibration::{Pixel, Rig, in_image_rectangle};
 use crate::drive::nmea::{GnssFix, GnssRecord, write_nmea};
 use crate::drive::{
     Detection, DriveError, Frame, Manifest, TruthRecord, detections_to_csv, frames_to_csv,
@@ -404,14 +404,26 @@ pub struct GnssNoise {
 impl GnssNoise {
     /// A model with horizontal CEP `cep_m`, a share `bias_share` of the per-axis variance
     /// in the bias of correlation time `tau_s`, and vertical σ `vertical` × horizontal.
-    pub fn new<R: Rng + ?Sized>(rng: &mut R, cep_m: f64, bias_share: f64, tau_s: f64, vertical: f64) -> Self {
+    pub fn new<R: Rng + ?Sized>(
+        rng: &mut R,
+        cep_m: f64,
+        bias_share: f64,
+        tau_s: f64,
+        vertical: f64,
+    ) -> Self {
         let sigma = cep_m / CEP_PER_SIGMA;
         let share = bias_share.clamp(0.0, 1.0);
         let sigma_bias = sigma * share.sqrt();
         let sigma_white = sigma * (1.0 - share).sqrt();
         let n = |r: &mut R| crate::synthetic::normal(r);
         let bias = Vector3::new(n(rng), n(rng), n(rng) * vertical) * sigma_bias;
-        Self { bias, sigma_bias, sigma_white, tau_s, vertical }
+        Self {
+            bias,
+            sigma_bias,
+            sigma_white,
+            tau_s,
+            vertical,
+        }
     }
 
     /// The error (ENU metres) of the next epoch, `dt_s` after the previous one.
@@ -524,7 +536,11 @@ pub fn simulate(sc: &Scenario) -> Result<SimulatedDrive, SimulateError> {
 
     // Survey: everything near the survey gap is unsurveyed, and a random share elsewhere.
     let gap_points: Vec<Vector2<f64>> = (0..=((gap_len / GAP_SAMPLE_M).ceil() as usize))
-        .map(|k| route.at(gap_start + (k as f64 * GAP_SAMPLE_M).min(gap_len)).0)
+        .map(|k| {
+            route
+                .at(gap_start + (k as f64 * GAP_SAMPLE_M).min(gap_len))
+                .0
+        })
         .collect();
     let gap_radius = sc.range_m + SURVEY_GAP_MARGIN_M;
     for l in &mut world.landmarks {
@@ -546,38 +562,47 @@ pub fn simulate(sc: &Scenario) -> Result<SimulatedDrive, SimulateError> {
         let mut visible = observe(&world, &sc.rig, &pose, sc.range_m);
         let mut detections = Vec::new();
         let frame = k as u64;
-        let mut push = |v: &VisiblePoint, rng: &mut crate::synthetic::TestRng, class: &str, strength: f64| {
-            let noise = Vector2::new(crate::synthetic::normal(rng), crate::synthetic::normal(rng));
-            let pixel = v.pixel + noise * sc.pixel_sigma_px;
-            let (w, h) = sc.rig.cameras()[v.camera].model.image_size();
-            if !in_image_rectangle(w, h, &pixel) {
-                return;
-            }
-            detections.push(SimDetection {
-                detection: Detection {
-                    frame,
-                    camera: v.camera,
-                    u: quantize(pixel.x, PIXEL_QUANTUM),
-                    v: quantize(pixel.y, PIXEL_QUANTUM),
-                    strength: Some(quantize(strength, PIXEL_QUANTUM)),
-                    class: Some(class.to_string()),
-                },
-                source: v.source,
-                true_pixel: v.pixel,
-            });
-        };
+        let mut push =
+            |v: &VisiblePoint, rng: &mut crate::synthetic::TestRng, class: &str, strength: f64| {
+                let noise =
+                    Vector2::new(crate::synthetic::normal(rng), crate::synthetic::normal(rng));
+                let pixel = v.pixel + noise * sc.pixel_sigma_px;
+                let (w, h) = sc.rig.cameras()[v.camera].model.image_size();
+                if !in_image_rectangle(w, h, &pixel) {
+                    return;
+                }
+                detections.push(SimDetection {
+                    detection: Detection {
+                        frame,
+                        camera: v.camera,
+                        u: quantize(pixel.x, PIXEL_QUANTUM),
+                        v: quantize(pixel.y, PIXEL_QUANTUM),
+                        strength: Some(quantize(strength, PIXEL_QUANTUM)),
+                        class: Some(class.to_string()),
+                    },
+                    source: v.source,
+                    true_pixel: v.pixel,
+                });
+            };
         let mut n_true = 0;
         for v in &visible {
             if rng_detect.random::<f64>() < sc.miss_rate {
                 continue;
             }
-            let Source::Landmark(i) = v.source else { continue };
+            let Source::Landmark(i) = v.source else {
+                continue;
+            };
             let class = world.landmarks[i].class;
             let brightness = match class {
                 LandmarkClass::Streetlight => 1.0,
                 LandmarkClass::Corner => 0.5,
             };
-            push(v, &mut rng_detect, class.label(), brightness * (20.0 / v.range_m).min(1.0));
+            push(
+                v,
+                &mut rng_detect,
+                class.label(),
+                brightness * (20.0 / v.range_m).min(1.0),
+            );
             n_true += 1;
         }
         // Transient lights: Poisson, so that they make `false_fraction` of the detections.
@@ -594,7 +619,12 @@ pub fn simulate(sc: &Scenario) -> Result<SimulatedDrive, SimulateError> {
                 let seen = project(&sc.rig, &pose, &(origin + dir * range), Source::Transient);
                 if let Some(first) = seen.first() {
                     let strength = rng_detect.random_range(0.2..1.0);
-                    push(first, &mut rng_detect, LandmarkClass::Streetlight.label(), strength);
+                    push(
+                        first,
+                        &mut rng_detect,
+                        LandmarkClass::Streetlight.label(),
+                        strength,
+                    );
                     transients.push(*first);
                     break;
                 }
@@ -639,7 +669,11 @@ pub fn simulate(sc: &Scenario) -> Result<SimulatedDrive, SimulateError> {
             .iter()
             .any(|o| time_s >= o.start_time_s && time_s <= o.end_time_s)
         {
-            gnss.push(GnssRecord { time_s, fix: None, heading_deg: None });
+            gnss.push(GnssRecord {
+                time_s,
+                fix: None,
+                heading_deg: None,
+            });
             continue;
         }
         let pose = pose_at(sc, &route, &motion, t - sc.gnss_lag_s);
@@ -749,7 +783,11 @@ impl SimulatedDrive {
 
     /// Fraction of the route length without a GPS fix.
     pub fn outage_fraction(&self) -> f64 {
-        self.outages.iter().map(|o| o.end_m - o.start_m).sum::<f64>() / self.route.length_m
+        self.outages
+            .iter()
+            .map(|o| o.end_m - o.start_m)
+            .sum::<f64>()
+            / self.route.length_m
     }
 
     /// Writes the drive directory (created if needed): `drive.json`, `calibration.json`,
@@ -777,7 +815,11 @@ impl SimulatedDrive {
         let frames: Vec<Frame> = self
             .frames
             .iter()
-            .map(|f| Frame { frame: f.frame, time_s: f.time_s, images: Vec::new() })
+            .map(|f| Frame {
+                frame: f.frame,
+                time_s: f.time_s,
+                images: Vec::new(),
+            })
             .collect();
         write_text(&dir.join(&manifest.frames), &frames_to_csv(&frames))?;
         let detections: Vec<Detection> = self
@@ -823,7 +865,13 @@ impl SimulatedDrive {
                 let _ = writeln!(
                     text,
                     "{},{},{},{},{},{},{}",
-                    f.frame, d.detection.camera, d.detection.u, d.detection.v, label, d.true_pixel.x, d.true_pixel.y
+                    f.frame,
+                    d.detection.camera,
+                    d.detection.u,
+                    d.detection.v,
+                    label,
+                    d.true_pixel.x,
+                    d.true_pixel.y
                 );
             }
         }

@@ -9,7 +9,10 @@ fn short(seed: u64) -> SimulatedDrive {
 fn bundled_calibration_is_the_repository_file() {
     let rig = default_rig().unwrap();
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/calibration/ladybug2.json");
-    assert_eq!(rig, crate::calibration::load(path.as_ref(), None, None).unwrap());
+    assert_eq!(
+        rig,
+        crate::calibration::load(path.as_ref(), None, None).unwrap()
+    );
     assert_eq!(rig.len(), 6);
 }
 
@@ -20,11 +23,17 @@ fn same_seed_same_bytes_other_seed_other_drive() {
     let (a, b) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
     simulate(&sc).unwrap().write(a.path()).unwrap();
     simulate(&sc).unwrap().write(b.path()).unwrap();
-    let mut names: Vec<_> = std::fs::read_dir(a.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+    let mut names: Vec<_> = std::fs::read_dir(a.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
     names.sort();
     assert_eq!(names.len(), 10);
     for n in &names {
-        let (x, y) = (std::fs::read(a.path().join(n)).unwrap(), std::fs::read(b.path().join(n)).unwrap());
+        let (x, y) = (
+            std::fs::read(a.path().join(n)).unwrap(),
+            std::fs::read(b.path().join(n)).unwrap(),
+        );
         assert!(x == y, "{n:?} differs");
     }
     sc.seed = 6;
@@ -42,7 +51,9 @@ fn vehicle_motion_is_plausible() {
     assert!((300..700).contains(&n), "{n} frames");
     let dt = 1.0 / sc.frame_rate_hz;
     for w in drive.frames.windows(2) {
-        let d = (w[1].world_from_rig.translation.vector - w[0].world_from_rig.translation.vector).xy().norm();
+        let d = (w[1].world_from_rig.translation.vector - w[0].world_from_rig.translation.vector)
+            .xy()
+            .norm();
         let v = d / dt;
         assert!((4.9..15.01).contains(&v), "speed {v}");
     }
@@ -59,7 +70,10 @@ fn vehicle_motion_is_plausible() {
         .windows(2)
         .filter(|w| (w[1].arc_m - w[0].arc_m) / dt > 10.0)
         .count();
-    assert!(speeds_high > n / 4, "the vehicle should cruise above 10 m/s on straights");
+    assert!(
+        speeds_high > n / 4,
+        "the vehicle should cruise above 10 m/s on straights"
+    );
 }
 
 /// Maximal runs of GNSS epochs without a fix, as (first time, last time).
@@ -88,7 +102,10 @@ fn outages_cover_15_percent_and_one_long_one_has_no_surveyed_landmarks() {
     for seed in [1, 2] {
         let drive = short(seed);
         let arc_at = |t: f64| {
-            let k = drive.frames.partition_point(|f| f.time_s < t).min(drive.frames.len() - 1);
+            let k = drive
+                .frames
+                .partition_point(|f| f.time_s < t)
+                .min(drive.frames.len() - 1);
             drive.frames[k].arc_m
         };
         let runs = no_fix_runs(&drive.gnss);
@@ -100,7 +117,11 @@ fn outages_cover_15_percent_and_one_long_one_has_no_surveyed_landmarks() {
             if *len < 300.0 {
                 continue;
             }
-            let inside: Vec<&SimFrame> = drive.frames.iter().filter(|f| f.time_s >= a && f.time_s <= b).collect();
+            let inside: Vec<&SimFrame> = drive
+                .frames
+                .iter()
+                .filter(|f| f.time_s >= a && f.time_s <= b)
+                .collect();
             let max_surveyed = inside
                 .iter()
                 .map(|f| {
@@ -133,7 +154,10 @@ fn outages_cover_15_percent_and_one_long_one_has_no_surveyed_landmarks() {
                 found = true;
             }
         }
-        assert!(found, "seed {seed}: no ≥ 300 m outage without surveyed landmarks: {lengths:?}");
+        assert!(
+            found,
+            "seed {seed}: no ≥ 300 m outage without surveyed landmarks: {lengths:?}"
+        );
     }
 }
 
@@ -143,7 +167,10 @@ fn detections_have_the_stated_noise_misses_and_false_share() {
     let sc = &drive.scenario;
     let (true_det, false_det, sightings) = drive.detection_counts();
     let false_share = false_det as f64 / (true_det + false_det) as f64;
-    assert!((false_share - sc.false_fraction).abs() < 0.02, "{false_share}");
+    assert!(
+        (false_share - sc.false_fraction).abs() < 0.02,
+        "{false_share}"
+    );
     let detected = true_det as f64 / sightings as f64;
     assert!((detected - (1.0 - sc.miss_rate)).abs() < 0.02, "{detected}");
     let mut sum2 = 0.0;
@@ -158,12 +185,18 @@ fn detections_have_the_stated_noise_misses_and_false_share() {
             if let Source::Landmark(i) = d.source {
                 let p = drive.world.landmarks[i].position_in_enu;
                 let seen = project(&sc.rig, &f.world_from_rig, &p, d.source);
-                assert!(seen.iter().any(|v| v.camera == d.detection.camera && (v.pixel - d.true_pixel).norm() < 1e-9));
+                assert!(
+                    seen.iter().any(|v| v.camera == d.detection.camera
+                        && (v.pixel - d.true_pixel).norm() < 1e-9)
+                );
             }
         }
     }
     let rms = (sum2 / count).sqrt();
-    assert!((rms - sc.pixel_sigma_px).abs() < 0.02 * sc.pixel_sigma_px + 0.005, "rms {rms}");
+    assert!(
+        (rms - sc.pixel_sigma_px).abs() < 0.02 * sc.pixel_sigma_px + 0.005,
+        "rms {rms}"
+    );
 }
 
 #[test]
@@ -171,7 +204,9 @@ fn gnss_noise_has_the_stated_cep() {
     let mut rng = crate::synthetic::rng(17);
     let mut noise = GnssNoise::new(&mut rng, 2.0, 0.78, 60.0, 1.5);
     // 100 000 epochs at 5 Hz: 20 000 s, about 330 bias correlation times.
-    let mut errors: Vec<f64> = (0..100_000).map(|_| noise.step(&mut rng, 0.2).xy().norm()).collect();
+    let mut errors: Vec<f64> = (0..100_000)
+        .map(|_| noise.step(&mut rng, 0.2).xy().norm())
+        .collect();
     errors.sort_by(f64::total_cmp);
     let cep = errors[errors.len() / 2];
     assert!((cep - 2.0).abs() < 0.12, "CEP {cep}");
@@ -191,14 +226,19 @@ fn fixes_lag_the_truth_by_the_latency() {
     };
     let mut checked = 0;
     for w in drive.gnss.windows(2) {
-        let (Some(fix), Some(_)) = (w[1].fix, w[0].fix) else { continue };
+        let (Some(fix), Some(_)) = (w[1].fix, w[0].fix) else {
+            continue;
+        };
         let reported = enu.to_enu(&fix.position);
         let now = motion_pose(w[1].time_s);
         let before = motion_pose(w[0].time_s);
         let speed = (now - before).xy().norm() / 0.2;
         let behind = (now - reported).xy().norm();
         // The fix is where the rig was lag_s earlier (NMEA rounding: millimetres).
-        assert!((behind - speed * sc.gnss_lag_s).abs() < 0.05 * speed * sc.gnss_lag_s + 0.01, "{behind} vs {speed}");
+        assert!(
+            (behind - speed * sc.gnss_lag_s).abs() < 0.05 * speed * sc.gnss_lag_s + 0.01,
+            "{behind} vs {speed}"
+        );
         checked += 1;
     }
     assert!(checked > 100);

@@ -164,7 +164,8 @@ impl World {
                                 + 2.0
                                 + (k as f64 + 0.25 + stagger * 0.5) * usable / n_lamps as f64
                                 + jitter;
-                            let h = rng.random_range(params.lamp_height_m.0..params.lamp_height_m.1);
+                            let h =
+                                rng.random_range(params.lamp_height_m.0..params.lamp_height_m.1);
                             let xy = node + dir * along + left * (side * (KERB_M - LAMP_ARM_M));
                             lamp(&mut world, Vector3::new(xy.x, xy.y, h));
                         }
@@ -268,7 +269,12 @@ pub struct VisiblePoint {
 
 /// Every camera and pixel that sees `point_in_world` from the rig at `world_from_rig`
 /// (inside the image rectangle), with no occlusion test.
-pub fn project(rig: &Rig, world_from_rig: &Pose, point_in_world: &Vector3<f64>, source: Source) -> Vec<VisiblePoint> {
+pub fn project(
+    rig: &Rig,
+    world_from_rig: &Pose,
+    point_in_world: &Vector3<f64>,
+    source: Source,
+) -> Vec<VisiblePoint> {
     let point_in_rig = world_from_rig.inverse_transform_point(&Point3::from(*point_in_world));
     rig.project_point(&point_in_rig.coords)
         .into_iter()
@@ -278,7 +284,10 @@ pub fn project(rig: &Rig, world_from_rig: &Pose, point_in_world: &Vector3<f64>, 
             if !in_image_rectangle(w, h, &rp.pixel) {
                 return None;
             }
-            let point_in_camera = c.rig_from_camera.inverse_transform_point(&point_in_rig).coords;
+            let point_in_camera = c
+                .rig_from_camera
+                .inverse_transform_point(&point_in_rig)
+                .coords;
             Some(VisiblePoint {
                 source,
                 camera: rp.camera,
@@ -330,6 +339,9 @@ mod tests {
         assert!(!b.blocks(&a, &Vector3::new(-0.05, -0.05, 10.05)));
         assert!(b.blocks(&a, &Vector3::new(10.05, 10.05, 9.0)));
         // Axis-parallel segment outside the slab.
-        assert!(!b.blocks(&Vector3::new(-1.0, -1.0, 2.0), &Vector3::new(-1.0, 20.0, 2.0)));
+        assert!(!b.blocks(
+            &Vector3::new(-1.0, -1.0, 2.0),
+            &Vector3::new(-1.0, 20.0, 2.0)
+        ));
     }
 }
