@@ -19,6 +19,8 @@
 //!   ambiguity and degeneracy statuses).
 //! - [`synthetic`]: the shared synthetic-problem generator used by tests and benchmarks.
 //! - [`io`]: readers for the CSV inputs, with errors that name file, line and field.
+//! - [`drive`]: drive logs (manifest, frames, detections, NMEA GNSS, truth): reader and writers.
+//! - [`simulate`]: simulated drives (city, route, detections, GNSS with outages) for tests and demos.
 //! - [`cli`]: the command implementations behind the thin `vgps` binary.
 //!
 //! ## Conventions (one set, everywhere)
