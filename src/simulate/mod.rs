@@ -70,6 +70,9 @@ const SURVEY_GAP_MARGIN_M: f64 = 10.0;
 const GAP_SAMPLE_M: f64 = 5.0;
 /// Attempts to place one transient light in some camera's view.
 const TRANSIENT_ATTEMPTS: usize = 10;
+/// Smallest share of the route without a GPS fix (the canyon outage is lengthened to reach
+/// it on long routes).
+pub const MIN_OUTAGE_SHARE: f64 = 0.16;
 /// Pixel coordinates are written rounded to this step (pixels).
 const PIXEL_QUANTUM: f64 = 1e-3;
 
@@ -519,7 +522,11 @@ pub fn simulate(sc: &Scenario) -> Result<SimulatedDrive, SimulateError> {
     // Outages: the survey gap, then the canyon.
     let gap_len = sc.survey_gap_m.min(0.4 * length);
     let gap_start = sc.survey_gap_at * length;
-    let canyon_len = sc.canyon_outage_m.min(0.1 * length);
+    // Long routes: the canyon outage grows so that the outages cover MIN_OUTAGE_SHARE.
+    let canyon_len = sc
+        .canyon_outage_m
+        .min(0.1 * length)
+        .max(MIN_OUTAGE_SHARE * length - gap_len);
     let canyon_start = (sc.canyon_outage_at * length).min(length - canyon_len);
     let start = sc.start_unix_s;
     let outage = |kind: &str, a: f64, b: f64| Outage {
