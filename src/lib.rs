@@ -22,6 +22,8 @@
 //! - [`synthetic`]: the shared synthetic-problem generator used by tests and benchmarks.
 //! - [`io`]: readers for the CSV inputs, with errors that name file, line and field.
 //! - [`report`]: the outputs of `vgps replay` (statistics, tables, track files, plots).
+//! - [`drive`]: drive logs (manifest, frames, detections, NMEA GNSS, truth): reader and writers.
+//! - [`simulate`]: simulated drives (city, route, detections, GNSS with outages) for tests and demos.
 //! - [`cli`]: the command implementations behind the thin `vgps` binary.
 //!
 //! ## Conventions (one set, everywhere)
@@ -51,6 +53,7 @@
 pub mod attitude;
 pub mod calibration;
 pub mod cli;
+pub mod drive;
 pub mod fix;
 pub mod geo;
 pub mod geometry;
@@ -58,6 +61,7 @@ pub mod io;
 pub mod matcher;
 pub mod report;
 pub mod robust;
+pub mod simulate;
 pub mod solvers;
 pub mod synthetic;
 pub mod triangulation;

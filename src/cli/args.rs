@@ -38,6 +38,8 @@ pub enum Command {
     Demo,
     /// Inspect, check, use and convert calibration files.
     Calib(super::calib::CalibArgs),
+    /// Write a simulated drive (city, route, detections, GPS with outages, truth).
+    Simulate(super::simulate::SimulateArgs),
 }
 
 /// Arguments of `vgps locate`.
@@ -167,6 +169,8 @@ pub enum Settings {
     Demo,
     /// `vgps calib …` (validated by its own module).
     Calib(super::calib::CalibArgs),
+    /// `vgps simulate`.
+    Simulate(super::simulate::SimulateArgs),
 }
 
 impl TryFrom<Cli> for Settings {
@@ -188,6 +192,7 @@ impl TryFrom<Cli> for Settings {
             }),
             Command::Demo => Settings::Demo,
             Command::Calib(a) => Settings::Calib(a),
+            Command::Simulate(a) => Settings::Simulate(a),
         })
     }
 }

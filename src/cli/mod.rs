@@ -12,6 +12,7 @@ pub mod args;
 pub mod calib;
 pub mod demo;
 pub mod locate;
+pub mod simulate;
 pub mod triangulate;
 
 pub use args::{Cli, LocateSettings, PriorArg, Settings, TriangulateSettings};
@@ -86,6 +87,7 @@ where
         Settings::Locate(s) => locate::run(&s, out, err),
         Settings::Triangulate(s) => triangulate::run(&s, out, err),
         Settings::Demo => demo::run(out),
+        Settings::Simulate(a) => simulate::run(&a, out),
         // Handled above: `vgps calib` reports on its own.
         Settings::Calib(_) => Ok(()),
     });

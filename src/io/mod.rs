@@ -40,7 +40,7 @@
 mod landmarks;
 mod observations;
 mod rays;
-mod table;
+pub(crate) mod table;
 
 pub use landmarks::{Landmark, landmarks_from_reader, read_landmarks};
 pub use observations::{Measurement, Observation, observations_from_reader, read_observations};

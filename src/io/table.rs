@@ -33,6 +33,8 @@ impl Table {
             })?;
         // Line numbers are counted here from the byte offsets: the csv crate's own line
         // counter skips comment lines, and its offsets point before skipped blank lines.
+        // Newline offsets, so that a line number costs a binary search (not a rescan).
+        let newlines: Vec<usize> = (0..bytes.len()).filter(|&i| bytes[i] == b'\n').collect();
         let line_of = |byte: u64| -> u64 {
             let mut start = usize::try_from(byte).unwrap_or(usize::MAX).min(bytes.len());
             while start < bytes.len() {
@@ -46,7 +48,7 @@ impl Table {
                     _ => break,
                 }
             }
-            1 + bytes[..start].iter().filter(|&&b| b == b'\n').count() as u64
+            1 + newlines.partition_point(|&i| i < start) as u64
         };
         let mut csv_reader = csv::ReaderBuilder::new()
             .has_headers(false)
