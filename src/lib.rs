@@ -18,6 +18,8 @@
 //! - [`fix`]: a fix from bearings to known landmarks (hypotheses, inliers, refinement,
 //!   ambiguity and degeneracy statuses).
 //! - [`synthetic`]: the shared synthetic-problem generator used by tests and benchmarks.
+//! - [`imaging`]: night frames of street lamps: rendering, PNG decoding with limits, the lamp
+//!   detector.
 //! - [`io`]: readers for the CSV inputs, with errors that name file, line and field.
 //! - [`cli`]: the command implementations behind the thin `vgps` binary.
 //!
@@ -51,6 +53,7 @@ pub mod cli;
 pub mod fix;
 pub mod geo;
 pub mod geometry;
+pub mod imaging;
 pub mod io;
 pub mod solvers;
 pub mod synthetic;
