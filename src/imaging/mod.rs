@@ -39,7 +39,7 @@ pub mod detect;
 pub mod render;
 
 pub use decode::{DecodeLimits, check_dimensions, decode_png, read_png};
-pub use detect::{Detections, DetectorConfig, LampDetection, LampDetector, Mask, Threshold};
+pub use detect::{CentroidWeight, Detections, DetectorConfig, LampDetection, LampDetector, Mask, Threshold};
 pub use render::{
     LightSource, RenderOptions, RenderedFrame, RenderedSpot, Renderer, SpotKind, encode_png,
     render_camera,
