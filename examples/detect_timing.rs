@@ -12,7 +12,9 @@ use vgps::imaging::{DecodeLimits, LampDetector, decode_png};
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let dir = args.first().ok_or_else(|| anyhow::anyhow!("usage: detect_timing DIR [REPEATS]"))?;
+    let dir = args
+        .first()
+        .ok_or_else(|| anyhow::anyhow!("usage: detect_timing DIR [REPEATS]"))?;
     let repeats: usize = args.get(1).map_or(Ok(5), |s| s.parse())?;
     let mut paths: Vec<_> = std::fs::read_dir(dir)?
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -25,7 +27,8 @@ fn main() -> anyhow::Result<()> {
     let (mut decode, mut detect, mut both) = (Vec::new(), Vec::new(), Vec::new());
     let mut detections = 0usize;
     for bytes in &files {
-        let (mut best_decode, mut best_detect, mut best_both) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+        let (mut best_decode, mut best_detect, mut best_both) =
+            (f64::INFINITY, f64::INFINITY, f64::INFINITY);
         for _ in 0..repeats.max(1) {
             let t = Instant::now();
             let image = decode_png(black_box(bytes), &limits)?;

@@ -2,8 +2,8 @@
 //! the decoder's robustness on hostile files.
 
 use vgps::imaging::{
-    CentroidWeight, DecodeLimits, DetectorConfig, Detections, ImagingError, LampDetector, RenderOptions, RenderedSpot, Renderer,
-    SpotKind, decode_png, encode_png,
+    CentroidWeight, DecodeLimits, Detections, DetectorConfig, ImagingError, LampDetector,
+    RenderOptions, RenderedSpot, Renderer, SpotKind, decode_png, encode_png,
 };
 use vgps::synthetic::calibration_files::ladybug2_rig;
 use vgps::synthetic::night::{StreetConfig, lights_in_camera, street_lamps};
@@ -44,7 +44,8 @@ fn evaluate(spots: &[RenderedSpot], found: &Detections, stats: &mut Stats) {
     };
     for (i, s) in spots.iter().enumerate() {
         let in_range = s.range_m.is_some_and(|r| r <= MAX_RANGE_M);
-        if !(matches!(s.kind, SpotKind::Lamp(_)) && in_range && !s.clipped_by_border && !crowded(i)) {
+        let eligible = matches!(s.kind, SpotKind::Lamp(_)) && in_range && !s.clipped_by_border;
+        if !eligible || crowded(i) {
             continue;
         }
         stats.eligible += 1;
@@ -60,7 +61,9 @@ fn evaluate(spots: &[RenderedSpot], found: &Detections, stats: &mut Stats) {
     }
     for d in &found.lamps {
         stats.detections += 1;
-        let lamp = spots.iter().any(|s| matches!(s.kind, SpotKind::Lamp(_)) && near(d, s).is_some());
+        let lamp = spots
+            .iter()
+            .any(|s| matches!(s.kind, SpotKind::Lamp(_)) && near(d, s).is_some());
         let any = spots.iter().any(|s| near(d, s).is_some());
         stats.matched_lamp += usize::from(lamp);
         stats.matched_any += usize::from(any);
@@ -74,7 +77,10 @@ fn median(v: &mut [f64]) -> f64 {
 
 fn run(detector: &LampDetector) -> Stats {
     let rig = ladybug2_rig();
-    let renderer = Renderer::new(RenderOptions { clutter_lights: 6, ..RenderOptions::default() });
+    let renderer = Renderer::new(RenderOptions {
+        clutter_lights: 6,
+        ..RenderOptions::default()
+    });
     let mut rng = vgps::synthetic::rng(2024);
     let mut stats = Stats::default();
     for frame in 0..16u64 {
@@ -107,10 +113,14 @@ fn summary(label: &str, mut stats: Stats) -> (f64, f64, f64) {
 #[test]
 fn detector_accuracy_recall_and_precision_on_rendered_street_scenes() {
     // 16 frames × 6 cameras, 40 lamps per frame and 6 clutter lights per image.
-    let (recall, med, precision_any) = summary("threshold-subtracted", run(&LampDetector::default()));
+    let (recall, med, precision_any) =
+        summary("threshold-subtracted", run(&LampDetector::default()));
     assert!(recall >= 0.98, "recall {recall}");
     assert!(med <= 0.1, "median centroid error {med} px");
-    assert!(precision_any >= 0.99, "precision against lamps or clutter {precision_any}");
+    assert!(
+        precision_any >= 0.99,
+        "precision against lamps or clutter {precision_any}"
+    );
     // The background-subtracted weight also meets the target, with a larger error.
     let background = LampDetector::new(DetectorConfig {
         centroid_weight: CentroidWeight::BackgroundSubtracted,
@@ -118,7 +128,10 @@ fn detector_accuracy_recall_and_precision_on_rendered_street_scenes() {
     });
     let (recall_b, med_b, _) = summary("background-subtracted", run(&background));
     assert_eq!(recall_b, recall);
-    assert!(med_b <= 0.1 && med_b >= med, "median centroid error {med_b} px vs {med} px");
+    assert!(
+        med_b <= 0.1 && med_b >= med,
+        "median centroid error {med_b} px vs {med} px"
+    );
 }
 
 #[test]
@@ -130,17 +143,33 @@ fn decoder_rejects_hostile_files_with_typed_errors() {
     let limits = DecodeLimits::for_camera(camera);
     assert_eq!(decode_png(&bytes, &limits).unwrap(), frame.image);
     // Truncated.
-    assert!(matches!(decode_png(&bytes[..bytes.len() / 3], &limits), Err(ImagingError::Decode { .. })));
+    assert!(matches!(
+        decode_png(&bytes[..bytes.len() / 3], &limits),
+        Err(ImagingError::Decode { .. })
+    ));
     // Not a PNG.
-    assert!(matches!(decode_png(b"\xff\xd8\xff\xe0 JFIF", &limits), Err(ImagingError::NotPng { .. })));
+    assert!(matches!(
+        decode_png(b"\xff\xd8\xff\xe0 JFIF", &limits),
+        Err(ImagingError::NotPng { .. })
+    ));
     // Huge header.
     let mut huge = bytes.clone();
     huge[16..20].copy_from_slice(&1_000_000u32.to_be_bytes());
     huge[20..24].copy_from_slice(&1_000_000u32.to_be_bytes());
-    assert!(matches!(decode_png(&huge, &DecodeLimits::default()), Err(ImagingError::TooLarge { .. })));
+    assert!(matches!(
+        decode_png(&huge, &DecodeLimits::default()),
+        Err(ImagingError::TooLarge { .. })
+    ));
     // Wrong dimensions (a smaller frame passes the limits, fails the calibration check).
     let small = encode_png(&image::GrayImage::new(640, 480)).unwrap();
     let decoded = decode_png(&small, &limits).unwrap();
     let e = vgps::imaging::check_dimensions(&decoded, camera, std::path::Path::new("cam0.png"));
-    assert!(matches!(e, Err(ImagingError::WrongDimensions { width: 640, height: 480, .. })));
+    assert!(matches!(
+        e,
+        Err(ImagingError::WrongDimensions {
+            width: 640,
+            height: 480,
+            ..
+        })
+    ));
 }

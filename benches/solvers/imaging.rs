@@ -10,10 +10,17 @@ use vgps::synthetic::night::{StreetConfig, lights_in_camera, street_lamps};
 /// Benchmarks of `vgps::imaging`.
 pub fn benches(c: &mut Criterion) {
     let rig = ladybug2_rig();
-    let renderer = Renderer::new(RenderOptions { clutter_lights: 6, ..RenderOptions::default() });
+    let renderer = Renderer::new(RenderOptions {
+        clutter_lights: 6,
+        ..RenderOptions::default()
+    });
     let mut rng = vgps::synthetic::rng(5);
     let lamps = street_lamps(&mut rng, &StreetConfig::default());
-    let lights: Vec<_> = rig.cameras().iter().map(|c| lights_in_camera(c, &lamps)).collect();
+    let lights: Vec<_> = rig
+        .cameras()
+        .iter()
+        .map(|c| lights_in_camera(c, &lamps))
+        .collect();
     let images: Vec<_> = rig
         .cameras()
         .iter()
@@ -59,5 +66,7 @@ pub fn benches(c: &mut Criterion) {
             renderer.render(black_box(camera), black_box(&lights[0]), seed)
         })
     });
-    c.bench_function("imaging/encode_png_one", |b| b.iter(|| encode_png(black_box(&images[0])).unwrap()));
+    c.bench_function("imaging/encode_png_one", |b| {
+        b.iter(|| encode_png(black_box(&images[0])).unwrap())
+    });
 }

@@ -109,12 +109,17 @@ pub fn check_dimensions(
     }
 }
 
-fn decode_named(bytes: &[u8], limits: &DecodeLimits, path: &Path) -> Result<GrayImage, ImagingError> {
+fn decode_named(
+    bytes: &[u8],
+    limits: &DecodeLimits,
+    path: &Path,
+) -> Result<GrayImage, ImagingError> {
     let path_buf = || PathBuf::from(path);
     if bytes.len() < IHDR_END || bytes[..8] != PNG_SIGNATURE || &bytes[12..16] != b"IHDR" {
         return Err(ImagingError::NotPng { path: path_buf() });
     }
-    let field = |at: usize| u32::from_be_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
+    let field =
+        |at: usize| u32::from_be_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
     let (width, height) = (field(16), field(20));
     let too_large = || ImagingError::TooLarge {
         path: path_buf(),
@@ -141,7 +146,8 @@ fn decode_named(bytes: &[u8], limits: &DecodeLimits, path: &Path) -> Result<Gray
             message: other.to_string(),
         },
     };
-    let decoder = PngDecoder::with_limits(Cursor::new(bytes), image_limits).map_err(decode_error)?;
+    let decoder =
+        PngDecoder::with_limits(Cursor::new(bytes), image_limits).map_err(decode_error)?;
     if decoder.color_type() == image::ColorType::L8 {
         let (w, h) = decoder.dimensions();
         let mut buffer = vec![0u8; decoder.total_bytes() as usize];
@@ -170,11 +176,17 @@ mod tests {
         // (The last 12 bytes are the IEND chunk, whose loss is harmless.)
         for cut in [bytes.len() - 13, bytes.len() / 2, 40, 30] {
             let r = decode_png(&bytes[..cut], &DecodeLimits::default());
-            assert!(matches!(r, Err(ImagingError::Decode { .. })), "cut {cut}: {r:?}");
+            assert!(
+                matches!(r, Err(ImagingError::Decode { .. })),
+                "cut {cut}: {r:?}"
+            );
         }
         for cut in [0, 8, 20] {
             let r = decode_png(&bytes[..cut], &DecodeLimits::default());
-            assert!(matches!(r, Err(ImagingError::NotPng { .. })), "cut {cut}: {r:?}");
+            assert!(
+                matches!(r, Err(ImagingError::NotPng { .. })),
+                "cut {cut}: {r:?}"
+            );
         }
     }
 
@@ -203,7 +215,9 @@ mod tests {
         assert!(matches!(e, ImagingError::NotPng { .. }));
         assert!(e.to_string().contains("frame.png"), "{e}");
         let missing = read_png(&dir.path().join("none.png"), &DecodeLimits::default()).unwrap_err();
-        assert!(matches!(missing, ImagingError::Io { .. }) && missing.to_string().contains("none.png"));
+        assert!(
+            matches!(missing, ImagingError::Io { .. }) && missing.to_string().contains("none.png")
+        );
     }
 
     #[test]
@@ -222,8 +236,14 @@ mod tests {
         // Within the per-axis limits but over the byte budget.
         bytes[16..20].copy_from_slice(&8000u32.to_be_bytes());
         bytes[20..24].copy_from_slice(&8000u32.to_be_bytes());
-        let small = DecodeLimits { max_bytes: 1 << 20, ..DecodeLimits::default() };
-        assert!(matches!(decode_png(&bytes, &small), Err(ImagingError::TooLarge { .. })));
+        let small = DecodeLimits {
+            max_bytes: 1 << 20,
+            ..DecodeLimits::default()
+        };
+        assert!(matches!(
+            decode_png(&bytes, &small),
+            Err(ImagingError::TooLarge { .. })
+        ));
     }
 
     #[test]
@@ -233,7 +253,13 @@ mod tests {
         let e = check_dimensions(&image, &camera, Path::new("cam0/000001.png")).unwrap_err();
         assert!(matches!(
             e,
-            ImagingError::WrongDimensions { width: 64, height: 48, expected_width: 1024, expected_height: 768, .. }
+            ImagingError::WrongDimensions {
+                width: 64,
+                height: 48,
+                expected_width: 1024,
+                expected_height: 768,
+                ..
+            }
         ));
         assert!(e.to_string().contains("cam0/000001.png"));
         let right = GrayImage::new(1024, 768);
@@ -255,17 +281,26 @@ mod tests {
         let grey = decode_png(&bytes, &DecodeLimits::default()).unwrap();
         assert_eq!(grey.dimensions(), (5, 4));
         assert!(grey.as_raw().iter().all(|&p| p == 200));
-        let wide = image::ImageBuffer::<image::Luma<u16>, _>::from_pixel(3, 2, image::Luma([0x8000u16]));
+        let wide =
+            image::ImageBuffer::<image::Luma<u16>, _>::from_pixel(3, 2, image::Luma([0x8000u16]));
         let mut bytes = Vec::new();
         image::codecs::png::PngEncoder::new(&mut bytes)
             .write_image(
-                &wide.as_raw().iter().flat_map(|v| v.to_ne_bytes()).collect::<Vec<u8>>(),
+                &wide
+                    .as_raw()
+                    .iter()
+                    .flat_map(|v| v.to_ne_bytes())
+                    .collect::<Vec<u8>>(),
                 3,
                 2,
                 image::ExtendedColorType::L16,
             )
             .unwrap();
         let grey = decode_png(&bytes, &DecodeLimits::default()).unwrap();
-        assert!(grey.as_raw().iter().all(|&p| p == 128), "{:?}", grey.as_raw());
+        assert!(
+            grey.as_raw().iter().all(|&p| p == 128),
+            "{:?}",
+            grey.as_raw()
+        );
     }
 }

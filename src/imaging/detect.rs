@@ -397,7 +397,11 @@ impl LampDetector {
     /// [`ImagingError::MaskDimensions`] when the mask's size differs from the image's;
     /// [`ImagingError::TooManyRuns`] when the frame has more than
     /// [`DetectorConfig::max_runs`] bright runs.
-    pub fn detect(&self, image: &GrayImage, mask: Option<&Mask>) -> Result<Detections, ImagingError> {
+    pub fn detect(
+        &self,
+        image: &GrayImage,
+        mask: Option<&Mask>,
+    ) -> Result<Detections, ImagingError> {
         let (width, height) = image.dimensions();
         if let Some(m) = mask
             && m.dimensions() != (width, height)
@@ -411,10 +415,14 @@ impl LampDetector {
         }
         let (w, h) = (width as usize, height as usize);
         let pixels = image.as_raw();
-        let (background_dn, noise_dn) = estimate_background(pixels, w, h, self.config.background_row_stride);
+        let (background_dn, noise_dn) =
+            estimate_background(pixels, w, h, self.config.background_row_stride);
         let threshold = match self.config.threshold {
             Threshold::Fixed(t) => t,
-            Threshold::Adaptive { k_sigma, min_contrast_dn } => {
+            Threshold::Adaptive {
+                k_sigma,
+                min_contrast_dn,
+            } => {
                 let level = background_dn + (k_sigma * noise_dn).max(min_contrast_dn);
                 if level.is_finite() {
                     level.floor().clamp(0.0, MAX_THRESHOLD as f64) as u8
@@ -480,7 +488,8 @@ impl LampDetector {
                 continue;
             }
             let elongation = m.elongation();
-            let area_ok = m.n >= u64::from(self.config.min_area) && m.n <= u64::from(self.config.max_area);
+            let area_ok =
+                m.n >= u64::from(self.config.min_area) && m.n <= u64::from(self.config.max_area);
             let total = m.si as f64 - weight_offset * m.n as f64;
             if !area_ok || !(elongation <= self.config.max_elongation) || !(total > 0.0) {
                 rejected += 1;
@@ -656,7 +665,11 @@ mod tests {
             let (w, h) = (rng.random_range(1..150u32), rng.random_range(1..60u32));
             let density = rng.random_range(0.05..0.6);
             let image = GrayImage::from_fn(w, h, |_, _| {
-                image::Luma([if rng.random_range(0.0..1.0) < density { rng.random_range(201..=255u8) } else { 3 }])
+                image::Luma([if rng.random_range(0.0..1.0) < density {
+                    rng.random_range(201..=255u8)
+                } else {
+                    3
+                }])
             });
             let found = LampDetector::new(config).detect(&image, None).unwrap();
             let mut expected = reference_components(&image, 200);
@@ -667,7 +680,10 @@ mod tests {
             assert_eq!(got.len(), expected.len(), "case {case}: {w}×{h}");
             for (g, e) in got.iter().zip(&expected) {
                 assert_eq!(g.0, e.0, "case {case}");
-                assert!((g.1 - e.1).abs() < 1e-9 && (g.2 - e.2).abs() < 1e-9, "case {case}: {g:?} {e:?}");
+                assert!(
+                    (g.1 - e.1).abs() < 1e-9 && (g.2 - e.2).abs() < 1e-9,
+                    "case {case}: {g:?} {e:?}"
+                );
             }
         }
     }
@@ -675,7 +691,9 @@ mod tests {
     #[test]
     fn background_and_noise_estimates() {
         // Uniform over 8..=12: median 10, median absolute deviation 1.
-        let image = GrayImage::from_fn(255, 64, |x, y| image::Luma([((x * 7 + y * 3) % 5 + 8) as u8]));
+        let image = GrayImage::from_fn(255, 64, |x, y| {
+            image::Luma([((x * 7 + y * 3) % 5 + 8) as u8])
+        });
         let (bg, noise) = estimate_background(image.as_raw(), 255, 64, 1);
         assert!((bg - 10.0).abs() < 0.05, "{bg}");
         assert!((noise - MAD_TO_SIGMA).abs() < 1e-12, "{noise}");
@@ -723,7 +741,9 @@ mod tests {
             LampDetector::default().detect(&image, Some(&wrong)),
             Err(ImagingError::MaskDimensions { mask_width: 81, .. })
         ));
-        let from_image = Mask::from_image(&GrayImage::from_fn(80, 40, |x, _| image::Luma([(x >= 55) as u8])));
+        let from_image = Mask::from_image(&GrayImage::from_fn(80, 40, |x, _| {
+            image::Luma([(x >= 55) as u8])
+        }));
         assert!(from_image.is_masked(55, 0) && !from_image.is_masked(54, 39));
     }
 
@@ -731,7 +751,10 @@ mod tests {
     fn polygon_mask_covers_pixel_centres_inside() {
         let mut mask = Mask::new(20, 20);
         mask.add_polygon(&[(2.0, 2.0), (12.0, 2.0), (12.0, 12.0), (2.0, 12.0)]);
-        let count = (0..20).flat_map(|x| (0..20).map(move |y| (x, y))).filter(|&(x, y)| mask.is_masked(x, y)).count();
+        let count = (0..20)
+            .flat_map(|x| (0..20).map(move |y| (x, y)))
+            .filter(|&(x, y)| mask.is_masked(x, y))
+            .count();
         // Rows 2..12 (the bottom edge excluded by the half-open rule) × columns 2..=12.
         assert_eq!(count, 10 * 11);
         let mut empty = Mask::new(20, 20);
@@ -742,15 +765,26 @@ mod tests {
 
     #[test]
     fn flooded_frame_is_a_typed_error_and_empty_images_work() {
-        let image = GrayImage::from_fn(200, 100, |x, y| image::Luma([if (x + y) % 2 == 0 { 255 } else { 0 }]));
+        let image = GrayImage::from_fn(200, 100, |x, y| {
+            image::Luma([if (x + y) % 2 == 0 { 255 } else { 0 }])
+        });
         let detector = LampDetector::new(DetectorConfig {
             threshold: Threshold::Fixed(100),
             max_runs: 1000,
             ..DetectorConfig::default()
         });
-        assert!(matches!(detector.detect(&image, None), Err(ImagingError::TooManyRuns { max_runs: 1000, .. })));
+        assert!(matches!(
+            detector.detect(&image, None),
+            Err(ImagingError::TooManyRuns { max_runs: 1000, .. })
+        ));
         let empty = GrayImage::new(0, 0);
-        assert!(LampDetector::default().detect(&empty, None).unwrap().lamps.is_empty());
+        assert!(
+            LampDetector::default()
+                .detect(&empty, None)
+                .unwrap()
+                .lamps
+                .is_empty()
+        );
         let saturated = blank(64, 64, 255);
         let found = LampDetector::default().detect(&saturated, None).unwrap();
         assert!(found.lamps.is_empty(), "{found:?}");

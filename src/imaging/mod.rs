@@ -34,12 +34,17 @@
 //! # Ok::<(), vgps::imaging::ImagingError>(())
 //! ```
 
+// `!(x < limit)` is used on purpose: it rejects NaN along with out-of-range values.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod decode;
 pub mod detect;
 pub mod render;
 
 pub use decode::{DecodeLimits, check_dimensions, decode_png, read_png};
-pub use detect::{CentroidWeight, Detections, DetectorConfig, LampDetection, LampDetector, Mask, Threshold};
+pub use detect::{
+    CentroidWeight, Detections, DetectorConfig, LampDetection, LampDetector, Mask, Threshold,
+};
 pub use render::{
     LightSource, RenderOptions, RenderedFrame, RenderedSpot, Renderer, SpotKind, encode_png,
     render_camera,

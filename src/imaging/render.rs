@@ -176,7 +176,8 @@ impl Renderer {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(NOISE_TILE_SEED);
         let noise_tile = (0..NOISE_TILE_LEN)
             .map(|_| {
-                let n: f64 = rand_distr::Distribution::sample(&rand_distr::StandardNormal, &mut rng);
+                let n: f64 =
+                    rand_distr::Distribution::sample(&rand_distr::StandardNormal, &mut rng);
                 quantise(options.background_dn + options.read_noise_dn * n)
             })
             .collect();
@@ -231,10 +232,10 @@ impl Renderer {
     fn lamp_blob(&self, camera: &Camera, light: &LightSource) -> Option<Blob> {
         let p = light.point_in_camera;
         let range = p.norm();
-        if !(range >= MIN_LAMP_RANGE_M && range.is_finite())
-            || !(light.radius_m >= 0.0 && light.radius_m < range)
-            || !(light.intensity > 0.0 && light.intensity.is_finite())
-        {
+        let valid_range = range >= MIN_LAMP_RANGE_M && range.is_finite();
+        let valid_radius = light.radius_m >= 0.0 && light.radius_m < range;
+        let valid_intensity = light.intensity > 0.0 && light.intensity.is_finite();
+        if !(valid_range && valid_radius && valid_intensity) {
             return None;
         }
         let bearing = p / range;
@@ -242,7 +243,8 @@ impl Renderer {
         let alpha = (light.radius_m / range).asin();
         let s = alpha / 2.0;
         let isotropic = self.options.psf_sigma_px.powi(2) + PIXEL_BOX_VARIANCE;
-        let covariance = (jacobian * jacobian.transpose()) * (s * s) + Matrix2::identity() * isotropic;
+        let covariance =
+            (jacobian * jacobian.transpose()) * (s * s) + Matrix2::identity() * isotropic;
         let flux = self.options.flux_scale * light.intensity / (range * range);
         Blob::new(centre, covariance, flux, range)
     }
@@ -523,19 +525,49 @@ mod tests {
                 sv += s * y as f64;
             }
         }
-        assert!((sum - truth.flux_dn).abs() < 0.03 * truth.flux_dn + 40.0, "{sum} vs {}", truth.flux_dn);
-        assert!((su / sum - truth.u).abs() < 0.05, "u {} vs {}", su / sum, truth.u);
-        assert!((sv / sum - truth.v).abs() < 0.05, "v {} vs {}", sv / sum, truth.v);
+        assert!(
+            (sum - truth.flux_dn).abs() < 0.03 * truth.flux_dn + 40.0,
+            "{sum} vs {}",
+            truth.flux_dn
+        );
+        assert!(
+            (su / sum - truth.u).abs() < 0.05,
+            "u {} vs {}",
+            su / sum,
+            truth.u
+        );
+        assert!(
+            (sv / sum - truth.v).abs() < 0.05,
+            "v {} vs {}",
+            sv / sum,
+            truth.v
+        );
     }
 
     #[test]
     fn lamps_behind_or_degenerate_are_not_drawn() {
         let r = Renderer::new(RenderOptions::default());
         let bad = [
-            LightSource { point_in_camera: Vector3::new(0.0, 0.0, -10.0), radius_m: 0.1, intensity: 1.0 },
-            LightSource { point_in_camera: Vector3::new(0.0, 0.0, 0.1), radius_m: 0.1, intensity: 1.0 },
-            LightSource { point_in_camera: Vector3::new(0.0, 0.0, 10.0), radius_m: 0.1, intensity: f64::NAN },
-            LightSource { point_in_camera: Vector3::new(f64::INFINITY, 0.0, 10.0), radius_m: 0.1, intensity: 1.0 },
+            LightSource {
+                point_in_camera: Vector3::new(0.0, 0.0, -10.0),
+                radius_m: 0.1,
+                intensity: 1.0,
+            },
+            LightSource {
+                point_in_camera: Vector3::new(0.0, 0.0, 0.1),
+                radius_m: 0.1,
+                intensity: 1.0,
+            },
+            LightSource {
+                point_in_camera: Vector3::new(0.0, 0.0, 10.0),
+                radius_m: 0.1,
+                intensity: f64::NAN,
+            },
+            LightSource {
+                point_in_camera: Vector3::new(f64::INFINITY, 0.0, 10.0),
+                radius_m: 0.1,
+                intensity: 1.0,
+            },
         ];
         let frame = r.render(&camera(), &bad, 1);
         assert!(frame.spots.is_empty());
@@ -546,7 +578,11 @@ mod tests {
     fn brightness_falls_with_range_squared() {
         let r = Renderer::new(RenderOptions::default());
         let at = |z: f64| {
-            let lamp = LightSource { point_in_camera: Vector3::new(0.0, 0.0, z), radius_m: 0.15, intensity: 1.0 };
+            let lamp = LightSource {
+                point_in_camera: Vector3::new(0.0, 0.0, z),
+                radius_m: 0.15,
+                intensity: 1.0,
+            };
             r.render(&camera(), &[lamp], 1).spots[0]
         };
         let (near, far) = (at(20.0), at(40.0));
@@ -558,7 +594,8 @@ mod tests {
     fn png_round_trip() {
         let frame = Renderer::new(RenderOptions::default()).render(&camera(), &[], 2);
         let bytes = encode_png(&frame.image).unwrap();
-        let back = crate::imaging::decode_png(&bytes, &crate::imaging::DecodeLimits::default()).unwrap();
+        let back =
+            crate::imaging::decode_png(&bytes, &crate::imaging::DecodeLimits::default()).unwrap();
         assert_eq!(back, frame.image);
     }
 }
