@@ -20,6 +20,8 @@
 //! - [`robust`]: the generic robust estimator (MSAC + local optimisation, adaptive
 //!   termination) and robust absolute pose with known correspondences.
 //! - [`synthetic`]: the shared synthetic-problem generator used by tests and benchmarks.
+//! - [`imaging`]: night frames of street lamps: rendering, PNG decoding with limits, the lamp
+//!   detector.
 //! - [`io`]: readers for the CSV inputs, with errors that name file, line and field.
 //! - [`report`]: the outputs of `vgps replay` (statistics, tables, track files, plots).
 //! - [`drive`]: drive logs (manifest, frames, detections, NMEA GNSS, truth): reader and writers.
@@ -57,6 +59,7 @@ pub mod drive;
 pub mod fix;
 pub mod geo;
 pub mod geometry;
+pub mod imaging;
 pub mod io;
 pub mod matcher;
 pub mod report;

@@ -5,6 +5,7 @@ use criterion::{criterion_group, criterion_main};
 mod calibration;
 mod fix;
 mod geo;
+mod imaging;
 mod p3p;
 mod p3p_cosines;
 mod refine_pose;
@@ -17,6 +18,7 @@ criterion_group!(
     calibration::benches,
     fix::benches,
     geo::benches,
+    imaging::benches,
     p3p::benches,
     p3p_cosines::benches,
     refine_pose::benches,

@@ -16,6 +16,7 @@
 pub mod calibration;
 pub mod calibration_files;
 pub mod matcher;
+pub mod night;
 pub mod pnp;
 pub mod rays;
 pub mod robust;
