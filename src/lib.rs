@@ -52,6 +52,7 @@ pub mod fix;
 pub mod geo;
 pub mod geometry;
 pub mod io;
+pub mod mapping;
 pub mod solvers;
 pub mod synthetic;
 pub mod triangulation;

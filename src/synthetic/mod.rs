@@ -15,6 +15,7 @@
 
 pub mod calibration;
 pub mod calibration_files;
+pub mod mapping;
 pub mod pnp;
 pub mod rays;
 pub use pnp::{PnpConfig, PnpProblem, RigModel, ladybug_camera_centres, perturb_pose};
