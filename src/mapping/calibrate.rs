@@ -96,7 +96,7 @@ pub fn calibrate_gps_offset(
     if !(search.min_s.is_finite() && search.max_s.is_finite() && search.min_s < search.max_s) {
         return Err(MappingError::InvalidOption("offset interval"));
     }
-    if search.grid_points < 3 || !(search.tolerance_s > 0.0) {
+    if search.grid_points < 3 || search.tolerance_s.is_nan() || search.tolerance_s <= 0.0 {
         return Err(MappingError::InvalidOption(
             "offset grid_points or tolerance_s",
         ));
@@ -104,7 +104,7 @@ pub fn calibrate_gps_offset(
     // Coarse scan, re-associating at every offset: score = χ² + BIC penalty per landmark.
     let n = search.grid_points;
     let step = (search.max_s - search.min_s) / (n - 1) as f64;
-    let mut best: Option<(f64, f64, Vec<Vec<(usize, usize)>>)> = None;
+    let mut best: Option<(f64, f64, Groups)> = None;
     for i in 0..n {
         let tau = search.min_s + step * i as f64;
         let groups = associate(gps, frames, options, tau)?;
@@ -147,6 +147,9 @@ pub fn calibrate_gps_offset(
         n_landmarks,
     })
 }
+
+/// The sources `(frame, observation)` of each landmark's rays.
+type Groups = Vec<Vec<(usize, usize)>>;
 
 /// The landmark rays (sources) of a survey at offset `tau` (landmarks with enough rays).
 fn associate(

@@ -64,7 +64,7 @@ impl MapperOptions {
         if !(self.min_init_parallax_rad >= 0.0 && self.min_init_parallax_rad < 1.5) {
             return Err(MappingError::InvalidOption("min_init_parallax_rad"));
         }
-        if !(self.tentative_timeout_s >= 0.0) {
+        if self.tentative_timeout_s.is_nan() || self.tentative_timeout_s < 0.0 {
             return Err(MappingError::InvalidOption("tentative_timeout_s"));
         }
         if self.min_landmark_rays < 2 {

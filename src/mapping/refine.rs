@@ -188,11 +188,12 @@ pub fn refine_landmark(rays: &[MapRay]) -> Result<TriangulatedPoint, Triangulati
     let mut b = Vector3::zeros();
     for (index, r) in rays.iter().enumerate() {
         let u = r.ray.direction;
-        if !is_finite(&r.ray.origin)
-            || (u.norm_squared() - 1.0).abs() > crate::triangulation::UNIT_DIRECTION_TOLERANCE
-            || !r.pose_covariance.iter().all(|v| v.is_finite())
-            || !(r.sigma_rad >= 0.0 && r.sigma_rad.is_finite())
-        {
+        let valid = is_finite(&r.ray.origin)
+            && (u.norm_squared() - 1.0).abs() <= crate::triangulation::UNIT_DIRECTION_TOLERANCE
+            && r.pose_covariance.iter().all(|v| v.is_finite())
+            && r.sigma_rad >= 0.0
+            && r.sigma_rad.is_finite();
+        if !valid {
             return Err(TriangulationError::InvalidRay { index });
         }
         let cos = u.dot(&u0);

@@ -160,7 +160,7 @@ pub fn gps_pose_at(
         (&gps[i.checked_sub(1)?], &gps[i])
     };
     let dt = b.time_s - a.time_s;
-    if !(dt > 0.0) {
+    if dt.is_nan() || dt <= 0.0 {
         return None;
     }
     let f = (time_s - a.time_s) / dt;
@@ -202,6 +202,23 @@ pub fn gps_pose_at(
 ///
 /// # Units
 /// Seconds, metres (ENU), radians.
+///
+/// # Example
+/// ```
+/// use vgps::mapping::{survey, SurveyOptions};
+/// use vgps::synthetic::mapping::{DriveConfig, MappingScenario, streetlights_along};
+/// // 200 m of road at 10 m/s, a lamp every 25 m on the right, GPS σ 0.3 m, heading σ 0.5°.
+/// let config = DriveConfig::straight(200.0);
+/// let lamps = streetlights_along(&config, 25.0, 6.0, 7.0, false);
+/// let drive = MappingScenario::generate(&mut vgps::synthetic::rng(1), &config, &lamps, None);
+/// let options = SurveyOptions { sigma_level_rad: config.sigma_level_rad, ..Default::default() };
+/// let inventory = survey(&drive.gps, &drive.frames, &options).unwrap();
+/// assert_eq!(inventory.landmarks.len(), lamps.len());
+/// for l in &inventory.landmarks {
+///     let nearest = lamps.iter().map(|p| (p - l.position_enu).norm()).fold(f64::INFINITY, f64::min);
+///     assert!(nearest < 4.0 * l.sigma_m() && l.sigma_m() < 0.2, "{nearest} {}", l.sigma_m());
+/// }
+/// ```
 pub fn survey(
     gps: &[GpsSample],
     frames: &[CameraFrame],
