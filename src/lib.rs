@@ -13,6 +13,8 @@
 //! - [`attitude`]: rotation from known directions ([`attitude::triad`](fn@attitude::triad), [`attitude::wahba`](fn@attitude::wahba)).
 //! - [`triangulation`]: landmark positions from rays ([`triangulation::intersect_two_rays`](fn@triangulation::intersect_two_rays),
 //!   [`triangulation::triangulate_rays`](fn@triangulation::triangulate_rays)).
+//! - [`mapping`]: landmark mapping from a moving rig (association, covariance, surrogates,
+//!   survey mode, GPS time offset).
 //! - [`calibration`]: camera models (pinhole, fisheye, panorama, LUT, NCLT tables), the
 //!   camera rig, and the calibration file formats.
 //! - [`fix`]: a fix from bearings to known landmarks (hypotheses, inliers, refinement,
@@ -65,6 +67,7 @@ pub mod matcher;
 pub mod report;
 pub mod robust;
 pub mod simulate;
+pub mod mapping;
 pub mod solvers;
 pub mod synthetic;
 pub mod triangulation;

@@ -6,6 +6,7 @@ mod calibration;
 mod fix;
 mod geo;
 mod imaging;
+mod mapping;
 mod p3p;
 mod p3p_cosines;
 mod refine_pose;
@@ -19,6 +20,7 @@ criterion_group!(
     fix::benches,
     geo::benches,
     imaging::benches,
+    mapping::benches,
     p3p::benches,
     p3p_cosines::benches,
     refine_pose::benches,

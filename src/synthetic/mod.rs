@@ -17,6 +17,7 @@ pub mod calibration;
 pub mod calibration_files;
 pub mod matcher;
 pub mod night;
+pub mod mapping;
 pub mod pnp;
 pub mod rays;
 pub mod robust;

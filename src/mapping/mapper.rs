@@ -1,0 +1,523 @@
+//! The online landmark mapper: association, track initialisation, refinement, pruning.
+
+use super::refine::{MapRay, ray_residual_covariance, refine_landmark};
+use super::{
+    GATE_CHI2_1DOF, GATE_CHI2_2DOF, MAX_INIT_RELATIVE_SIGMA, MAX_RANGE_M, MIN_INIT_PARALLAX_RAD,
+    MIN_LANDMARK_RAYS, MIN_RANGE_M, MappedLandmark, MappingError, MappingFrame, SurrogateCriteria,
+    TENTATIVE_TIMEOUT_S,
+};
+use crate::synthetic::tangent_basis;
+use crate::triangulation::{
+    RayObservation, RaySum, TriangulatedPoint, TriangulationError, intersect_two_rays,
+};
+use nalgebra::{Matrix2, Vector2, Vector3};
+
+/// Options of the [`LandmarkMapper`]; `Default` gives the documented constants.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MapperOptions {
+    /// Gate on the squared Mahalanobis distance of a landmark estimate from a new ray
+    /// ([`GATE_CHI2_2DOF`]).
+    pub gate_chi2_2dof: f64,
+    /// Gate on the squared, normalised gap between a new ray and a one-ray track
+    /// ([`GATE_CHI2_1DOF`]).
+    pub gate_chi2_1dof: f64,
+    /// Farthest landmark associated (metres, [`MAX_RANGE_M`]).
+    pub max_range_m: f64,
+    /// Smallest two-ray parallax that initialises a track (radians,
+    /// [`MIN_INIT_PARALLAX_RAD`]).
+    pub min_init_parallax_rad: f64,
+    /// Time after which an unseen track with fewer than `min_landmark_rays` rays is dropped
+    /// (seconds, [`TENTATIVE_TIMEOUT_S`]).
+    pub tentative_timeout_s: f64,
+    /// Fewest rays of a reported landmark ([`MIN_LANDMARK_RAYS`]).
+    pub min_landmark_rays: usize,
+    /// When a landmark becomes a surrogate.
+    pub surrogate: SurrogateCriteria,
+}
+
+impl Default for MapperOptions {
+    fn default() -> Self {
+        Self {
+            gate_chi2_2dof: GATE_CHI2_2DOF,
+            gate_chi2_1dof: GATE_CHI2_1DOF,
+            max_range_m: MAX_RANGE_M,
+            min_init_parallax_rad: MIN_INIT_PARALLAX_RAD,
+            tentative_timeout_s: TENTATIVE_TIMEOUT_S,
+            min_landmark_rays: MIN_LANDMARK_RAYS,
+            surrogate: SurrogateCriteria::default(),
+        }
+    }
+}
+
+impl MapperOptions {
+    fn validate(&self) -> Result<(), MappingError> {
+        let pos = |v: f64| v > 0.0 && v.is_finite();
+        if !pos(self.gate_chi2_2dof) {
+            return Err(MappingError::InvalidOption("gate_chi2_2dof"));
+        }
+        if !pos(self.gate_chi2_1dof) {
+            return Err(MappingError::InvalidOption("gate_chi2_1dof"));
+        }
+        if !pos(self.max_range_m) {
+            return Err(MappingError::InvalidOption("max_range_m"));
+        }
+        if !(self.min_init_parallax_rad >= 0.0 && self.min_init_parallax_rad < 1.5) {
+            return Err(MappingError::InvalidOption("min_init_parallax_rad"));
+        }
+        if self.tentative_timeout_s.is_nan() || self.tentative_timeout_s < 0.0 {
+            return Err(MappingError::InvalidOption("tentative_timeout_s"));
+        }
+        if self.min_landmark_rays < 2 {
+            return Err(MappingError::InvalidOption("min_landmark_rays"));
+        }
+        Ok(())
+    }
+}
+
+/// The tentative-track gate compares a new ray with at most this many of the track's latest
+/// rays.
+pub const MAX_PAIRWISE_RAYS: usize = 16;
+
+/// Where an observation came from: (frame number in the order added, index in the frame).
+pub(crate) type Source = (usize, usize);
+
+/// One track: a tentative or confirmed landmark.
+#[derive(Clone, Debug)]
+struct Track {
+    id: u64,
+    class: Option<u32>,
+    rays: Vec<MapRay>,
+    /// The isotropic noise approximation of each ray (for gating).
+    effective: Vec<RayObservation>,
+    sources: Vec<Source>,
+    sum: RaySum,
+    estimate: Option<TriangulatedPoint>,
+    last_seen_s: f64,
+}
+
+impl Track {
+    fn new(
+        id: u64,
+        class: Option<u32>,
+        ray: MapRay,
+        eff: RayObservation,
+        source: Source,
+        t: f64,
+    ) -> Result<Self, TriangulationError> {
+        let mut sum = RaySum::new();
+        sum.add(&eff)?;
+        Ok(Self {
+            id,
+            class,
+            rays: vec![ray],
+            effective: vec![eff],
+            sources: vec![source],
+            sum,
+            estimate: None,
+            last_seen_s: t,
+        })
+    }
+
+    /// Adds a ray, then updates (or tries to initialise) the estimate.
+    fn add(
+        &mut self,
+        ray: MapRay,
+        eff: RayObservation,
+        source: Source,
+        t: f64,
+        min_parallax: f64,
+        max_range_m: f64,
+    ) -> Result<(), TriangulationError> {
+        self.sum.add(&eff)?;
+        self.rays.push(ray);
+        self.effective.push(eff);
+        self.sources.push(source);
+        self.last_seen_s = t;
+        if self.estimate.is_some() {
+            if let Ok(e) = self.sum.solve() {
+                self.estimate = Some(e);
+            }
+            return Ok(());
+        }
+        let Some(first) = self.rays.first() else {
+            return Ok(());
+        };
+        let initialised = match intersect_two_rays(&first.ray, &ray.ray) {
+            Ok(hit) => {
+                hit.parallax_rad()
+                    .min(std::f64::consts::PI - hit.parallax_rad())
+                    >= min_parallax
+            }
+            Err(_) => false,
+        };
+        if initialised
+            && let Ok(e) = self.sum.solve()
+            && self.rays.iter().all(|r| {
+                let range = (e.point - r.ray.origin).dot(&r.ray.direction);
+                range > 0.0 && range <= max_range_m
+            })
+            && e.covariance.symmetric_eigenvalues().max().max(0.0).sqrt()
+                <= MAX_INIT_RELATIVE_SIGMA * (e.point - ray.ray.origin).norm()
+        {
+            self.estimate = Some(e);
+        }
+        Ok(())
+    }
+}
+
+/// Ku, Ho & Sarma's online landmark mapper (O(n·k) association per frame).
+///
+/// Feed frames in time order with [`add_frame`](Self::add_frame); read the refined
+/// landmarks with [`landmarks`](Self::landmarks) and the surrogates with
+/// [`surrogates`](Self::surrogates).
+///
+/// # Association
+/// For each new ray (origin `x`, unit direction `u`, isotropic noise `σ_pos`, `σ_ang` from
+/// [`MapRay::effective_observation`]) and each track of the same class within
+/// `max_range_m` of the rig:
+/// - a track with an estimate `p̂`, `Σ̂` (its rays' projector sum, [`RaySum`]): with `E` two
+///   unit vectors perpendicular to `u` and `r = p̂ − x` (in front, `u·r ∈ (0, max_range]`),
+///   `m = (Eᵀr)ᵀ [Eᵀ(Σ̂ + (σ_pos² + σ_ang²|r|²) I)E]⁻¹ (Eᵀr) ≤ gate_chi2_2dof`;
+/// - a track without one (one ray, or rays without enough parallax): the gap `g` between
+///   the new ray and each of the track's last [`MAX_PAIRWISE_RAYS`] rays (the largest `m`
+///   counts), both taken as segments from the camera to `max_range_m`,
+///   over its variance along the gap (full residual covariances at the closest points):
+///   `m = g² / var ≤ gate_chi2_1dof`.
+///
+/// The pairs that pass are assigned greedily, tracks with an estimate first (a ray that fits
+/// an established landmark is not given to a tentative track that happens to lie on the
+/// same line of sight), then by increasing `m`, one to one (a frame cannot
+/// see one landmark twice); an unassigned ray starts a tentative track. A track is
+/// initialised when its first ray and a new ray intersect in front of both with parallax
+/// ≥ `min_init_parallax_rad` and the projector sum of its rays is determined to
+/// [`MAX_INIT_RELATIVE_SIGMA`] of its range (worst-axis σ), in front of every ray within
+/// `max_range_m`; from then on it follows the projector sum of all its rays.
+/// Tracks unseen for `tentative_timeout_s` with fewer than `min_landmark_rays` rays are
+/// dropped.
+///
+/// # Example
+/// ```
+/// use nalgebra::{Matrix6, Point3, Translation3, UnitQuaternion, Vector3};
+/// use vgps::geometry::{Pose, Ray};
+/// use vgps::mapping::{LandmarkMapper, MapperOptions, MappingFrame, RigObservation};
+/// let lamp = Vector3::new(15.0, -6.0, 7.0);
+/// let mut mapper = LandmarkMapper::new(MapperOptions::default()).unwrap();
+/// let cov = Matrix6::from_diagonal_element(1e-4);
+/// for k in 0..20 {
+///     let pose = Pose::from_parts(Translation3::new(k as f64, 0.0, 2.0), UnitQuaternion::identity().into());
+///     let in_rig = pose.inverse() * Point3::from(lamp);
+///     let observations = vec![RigObservation {
+///         ray_in_rig: Ray::try_new(Vector3::zeros(), in_rig.coords).unwrap(),
+///         sigma_rad: 1e-3,
+///         class: None,
+///     }];
+///     let frame = MappingFrame { time_s: 0.1 * k as f64, world_from_rig: pose, pose_covariance: cov, observations };
+///     mapper.add_frame(&frame).unwrap();
+/// }
+/// let landmarks = mapper.landmarks();
+/// assert_eq!(landmarks.len(), 1);
+/// assert_eq!(landmarks[0].n_obs, 20);
+/// assert!((landmarks[0].position_enu - lamp).norm() < 1e-6);
+/// assert_eq!(mapper.surrogates().len(), 1);
+/// ```
+///
+/// # References
+/// - J. S. Ku, S. Ho, S. Sarma, "Landmark Mapping from Unbiased Observations", §II-E.
+#[derive(Clone, Debug)]
+pub struct LandmarkMapper {
+    options: MapperOptions,
+    tracks: Vec<Track>,
+    next_id: u64,
+    frames_added: usize,
+}
+
+impl LandmarkMapper {
+    /// An empty mapper.
+    ///
+    /// # Errors
+    /// [`MappingError::InvalidOption`] for a non-positive gate or range, a negative time-out,
+    /// a parallax outside `[0, 1.5)` rad, or `min_landmark_rays < 2`.
+    pub fn new(options: MapperOptions) -> Result<Self, MappingError> {
+        options.validate()?;
+        Ok(Self {
+            options,
+            tracks: Vec::new(),
+            next_id: 0,
+            frames_added: 0,
+        })
+    }
+
+    /// The options in use.
+    pub fn options(&self) -> &MapperOptions {
+        &self.options
+    }
+
+    /// Number of tracks (tentative and confirmed).
+    pub fn track_count(&self) -> usize {
+        self.tracks.len()
+    }
+
+    /// Number of frames added.
+    pub fn frames_added(&self) -> usize {
+        self.frames_added
+    }
+
+    /// Associates the observations of one frame and updates the tracks. Returns, per
+    /// observation, the id of the track it joined or started.
+    ///
+    /// # Errors
+    /// [`MappingError::InvalidPose`] / [`MappingError::InvalidObservation`] (with `frame` =
+    /// the number of frames added before); the mapper is then unchanged.
+    pub fn add_frame(&mut self, frame: &MappingFrame) -> Result<Vec<u64>, MappingError> {
+        let frame_index = self.frames_added;
+        frame.validate(frame_index)?;
+        let rig_origin = frame.world_from_rig.translation.vector;
+        let rays: Vec<MapRay> = frame
+            .observations
+            .iter()
+            .map(|o| {
+                MapRay::from_rig(
+                    &frame.world_from_rig,
+                    &frame.pose_covariance,
+                    &o.ray_in_rig,
+                    o.sigma_rad,
+                )
+            })
+            .collect();
+        let effective: Vec<RayObservation> =
+            rays.iter().map(MapRay::effective_observation).collect();
+        let opts = self.options;
+        // (priority: 0 = track with an estimate, 1 = tentative; m; observation; track)
+        let mut candidates: Vec<(u8, f64, usize, usize)> = Vec::new();
+        for (ti, track) in self.tracks.iter().enumerate() {
+            match &track.estimate {
+                Some(est) => {
+                    if (est.point - rig_origin).norm() > opts.max_range_m * 1.5 {
+                        continue;
+                    }
+                    for (k, (o, ray)) in frame.observations.iter().zip(&rays).enumerate() {
+                        if !classes_match(track.class, o.class) {
+                            continue;
+                        }
+                        if let Some(m) = gate_estimate(est, ray, opts.max_range_m)
+                            && m <= opts.gate_chi2_2dof
+                        {
+                            candidates.push((0, m, k, ti));
+                        }
+                    }
+                }
+                None => {
+                    let Some(last) = track.rays.last() else {
+                        continue;
+                    };
+                    if (last.ray.origin - rig_origin).norm() > 2.0 * opts.max_range_m {
+                        continue;
+                    }
+                    for (k, (o, ray)) in frame.observations.iter().zip(&rays).enumerate() {
+                        if !classes_match(track.class, o.class) {
+                            continue;
+                        }
+                        // The new ray must pass near every recent ray of the track.
+                        let start = track.rays.len().saturating_sub(MAX_PAIRWISE_RAYS);
+                        let worst = track.rays[start..]
+                            .iter()
+                            .map(|r| gate_two_rays(r, ray, &opts))
+                            .try_fold(0.0f64, |acc, m| m.map(|m| acc.max(m)));
+                        if let Some(m) = worst
+                            && m <= opts.gate_chi2_1dof
+                        {
+                            candidates.push((1, m, k, ti));
+                        }
+                    }
+                }
+            }
+        }
+        candidates.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
+        let mut obs_track: Vec<Option<usize>> = vec![None; rays.len()];
+        let mut track_used = vec![false; self.tracks.len()];
+        for &(_, _, k, ti) in &candidates {
+            if obs_track[k].is_none() && !track_used[ti] {
+                obs_track[k] = Some(ti);
+                track_used[ti] = true;
+            }
+        }
+        // Validate before mutating: every effective observation must be accepted by RaySum.
+        for (k, eff) in effective.iter().enumerate() {
+            RaySum::new()
+                .add(eff)
+                .map_err(|_| MappingError::InvalidObservation {
+                    frame: frame_index,
+                    observation: k,
+                    reason: "ray rejected by the accumulator",
+                })?;
+        }
+        let mut ids = Vec::with_capacity(rays.len());
+        for (k, ((ray, eff), assigned)) in rays.iter().zip(&effective).zip(&obs_track).enumerate() {
+            let source = (frame_index, k);
+            match assigned {
+                Some(ti) => {
+                    let track = &mut self.tracks[*ti];
+                    // Validated above: cannot fail.
+                    let _ = track.add(
+                        *ray,
+                        *eff,
+                        source,
+                        frame.time_s,
+                        opts.min_init_parallax_rad,
+                        opts.max_range_m,
+                    );
+                    ids.push(track.id);
+                }
+                None => {
+                    let id = self.next_id;
+                    self.next_id += 1;
+                    if let Ok(t) = Track::new(
+                        id,
+                        frame.observations[k].class,
+                        *ray,
+                        *eff,
+                        source,
+                        frame.time_s,
+                    ) {
+                        self.tracks.push(t);
+                    }
+                    ids.push(id);
+                }
+            }
+        }
+        let now = frame.time_s;
+        self.tracks.retain(|t| {
+            t.rays.len() >= opts.min_landmark_rays
+                || (now - t.last_seen_s).abs() <= opts.tentative_timeout_s
+        });
+        self.frames_added += 1;
+        Ok(ids)
+    }
+
+    /// The refined landmarks: every track with an estimate and at least `min_landmark_rays`
+    /// rays, refined by [`refine_landmark`] (tracks whose refinement fails are left out).
+    pub fn landmarks(&self) -> Vec<MappedLandmark> {
+        self.tracks
+            .iter()
+            .filter(|t| t.estimate.is_some() && t.rays.len() >= self.options.min_landmark_rays)
+            .filter_map(|t| {
+                let e = refine_landmark(&t.rays).ok()?;
+                Some(MappedLandmark {
+                    id: t.id,
+                    position_enu: e.point,
+                    covariance: e.covariance,
+                    n_obs: e.n_obs,
+                    max_parallax_rad: e.max_parallax_rad(),
+                    class: t.class,
+                })
+            })
+            .collect()
+    }
+
+    /// The landmarks that meet the surrogate criteria of the options (refined, with
+    /// position, covariance and number of rays): the secondary landmarks the localizer may
+    /// use, weighted by their covariance, when primary landmarks are occluded.
+    pub fn surrogates(&self) -> Vec<MappedLandmark> {
+        let c = self.options.surrogate;
+        self.landmarks()
+            .into_iter()
+            .filter(|l| c.accepts(l))
+            .collect()
+    }
+
+    /// The sources `(frame number, observation index)` of every reported landmark's rays,
+    /// keyed by landmark id.
+    pub fn associations(&self) -> Vec<(u64, Vec<(usize, usize)>)> {
+        self.tracks
+            .iter()
+            .filter(|t| t.estimate.is_some() && t.rays.len() >= self.options.min_landmark_rays)
+            .map(|t| (t.id, t.sources.clone()))
+            .collect()
+    }
+}
+
+/// True when two optional class labels may belong to one landmark.
+#[inline]
+fn classes_match(a: Option<u32>, b: Option<u32>) -> bool {
+    match (a, b) {
+        (Some(x), Some(y)) => x == y,
+        _ => true,
+    }
+}
+
+/// Squared Mahalanobis distance of a landmark estimate from a ray (2 dof), or `None` when the
+/// estimate is behind the ray or beyond `max_range_m`. The ray's own residual covariance is
+/// the full propagation of [`super::ray_residual_covariance`].
+#[inline]
+fn gate_estimate(est: &TriangulatedPoint, ray: &MapRay, max_range_m: f64) -> Option<f64> {
+    let u = ray.ray.direction;
+    let r = est.point - ray.ray.origin;
+    let range = r.dot(&u);
+    if !(range > 0.0 && range <= max_range_m) {
+        return None;
+    }
+    let (e1, e2) = tangent_basis(&u);
+    let rv = Vector2::new(e1.dot(&r), e2.dot(&r));
+    let c = est.covariance + ray_residual_covariance(ray, &est.point);
+    let ce1: Vector3<f64> = c * e1;
+    let ce2: Vector3<f64> = c * e2;
+    let m = Matrix2::new(e1.dot(&ce1), e1.dot(&ce2), e2.dot(&ce1), e2.dot(&ce2));
+    let inv = m.try_inverse()?;
+    let d2 = rv.dot(&(inv * rv));
+    d2.is_finite().then_some(d2)
+}
+
+/// Closest points `(s, t)` of the segments `a0 + s·u`, `b0 + t·v`, `s, t ∈ [0, len]`
+/// (`u`, `v` unit), after Ericson, *Real-Time Collision Detection* §5.1.9.
+fn closest_on_segments(
+    a0: &Vector3<f64>,
+    u: &Vector3<f64>,
+    b0: &Vector3<f64>,
+    v: &Vector3<f64>,
+    len: f64,
+) -> (f64, f64) {
+    let r = a0 - b0;
+    let b = u.dot(v);
+    let c = u.dot(&r);
+    let f = v.dot(&r);
+    let denom = 1.0 - b * b;
+    let mut s = if denom > 1e-12 {
+        ((b * f - c) / denom).clamp(0.0, len)
+    } else {
+        0.0
+    };
+    let mut t = b * s + f;
+    if t < 0.0 {
+        t = 0.0;
+        s = (-c).clamp(0.0, len);
+    } else if t > len {
+        t = len;
+        s = (b * len - c).clamp(0.0, len);
+    }
+    (s, t)
+}
+
+/// The two-ray gate: squared gap between a track's last ray and a new ray, each taken as the
+/// segment from [`MIN_RANGE_M`] to `max_range_m` in front of its camera, over its variance `ĝᵀ(S_a + S_b)ĝ`
+/// along the gap `ĝ` (both residual covariances of [`super::ray_residual_covariance`] at the
+/// closest points). Unlike a line intersection, this stays meaningful for nearly parallel
+/// rays, whose noisy intersection can be anywhere along the line of sight.
+#[inline]
+fn gate_two_rays(a: &MapRay, b: &MapRay, opts: &MapperOptions) -> Option<f64> {
+    let (u, v) = (a.ray.direction, b.ray.direction);
+    let near = MIN_RANGE_M.min(0.5 * opts.max_range_m);
+    let (a0, b0) = (a.ray.at(near), b.ray.at(near));
+    let (s, t) = closest_on_segments(&a0, &u, &b0, &v, opts.max_range_m - near);
+    let pa = a0 + u * s;
+    let pb = b0 + v * t;
+    let g = pa - pb;
+    let gap = g.norm();
+    if gap == 0.0 {
+        return Some(0.0);
+    }
+    let gh = g / gap;
+    let var = gh.dot(&(ray_residual_covariance(a, &pa) * gh))
+        + gh.dot(&(ray_residual_covariance(b, &pb) * gh));
+    let m = gap * gap / var;
+    m.is_finite().then_some(m)
+}
