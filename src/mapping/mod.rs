@@ -42,13 +42,16 @@ mod survey;
 #[cfg(test)]
 mod tests;
 
-pub use calibrate::{OffsetCalibration, OffsetSearch, calibrate_gps_offset};
+pub use calibrate::{
+    MAX_GPS_OFFSET_S, OFFSET_GRID_POINTS, OFFSET_TOLERANCE_S, OffsetCalibration, OffsetSearch,
+    calibrate_gps_offset,
+};
 pub use frame::{MappingFrame, RigObservation};
 pub use mapper::{LandmarkMapper, MAX_PAIRWISE_RAYS, MapperOptions};
 pub use refine::{MapRay, ray_residual_covariance, refine_landmark};
 pub use survey::{
-    CameraFrame, GpsSample, Survey, SurveyOptions, gps_pose_at, landmarks_csv, survey,
-    write_landmarks_csv,
+    CameraFrame, GpsSample, SIGMA_LEVEL_RAD, Survey, SurveyOptions, gps_pose_at, landmarks_csv,
+    survey, write_landmarks_csv,
 };
 
 use crate::geo::{GeoError, Geodetic, LocalFrame};
