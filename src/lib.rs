@@ -28,6 +28,7 @@
 //! - [`report`]: the outputs of `vgps replay` (statistics, tables, track files, plots).
 //! - [`drive`]: drive logs (manifest, frames, detections, NMEA GNSS, truth): reader and writers.
 //! - [`simulate`]: simulated drives (city, route, detections, GNSS with outages) for tests and demos.
+//! - [`localizer`]: the frame-by-frame localizer for robot stacks (tracking, re-acquisition, surrogates).
 //! - [`cli`]: the command implementations behind the thin `vgps` binary.
 //!
 //! ## Conventions (one set, everywhere)
@@ -63,11 +64,12 @@ pub mod geo;
 pub mod geometry;
 pub mod imaging;
 pub mod io;
+pub mod localizer;
+pub mod mapping;
 pub mod matcher;
 pub mod report;
 pub mod robust;
 pub mod simulate;
-pub mod mapping;
 pub mod solvers;
 pub mod synthetic;
 pub mod triangulation;

@@ -40,6 +40,8 @@ pub enum Command {
     Calib(super::calib::CalibArgs),
     /// Write a simulated drive (city, route, detections, GPS with outages, truth).
     Simulate(super::simulate::SimulateArgs),
+    /// Visual GPS for every frame of a logged drive, against satellite GPS and truth.
+    Replay(super::replay::ReplayArgs),
 }
 
 /// Arguments of `vgps locate`.
@@ -171,6 +173,8 @@ pub enum Settings {
     Calib(super::calib::CalibArgs),
     /// `vgps simulate`.
     Simulate(super::simulate::SimulateArgs),
+    /// `vgps replay`.
+    Replay(super::replay::ReplayArgs),
 }
 
 impl TryFrom<Cli> for Settings {
@@ -193,6 +197,7 @@ impl TryFrom<Cli> for Settings {
             Command::Demo => Settings::Demo,
             Command::Calib(a) => Settings::Calib(a),
             Command::Simulate(a) => Settings::Simulate(a),
+            Command::Replay(a) => Settings::Replay(a),
         })
     }
 }

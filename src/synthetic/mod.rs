@@ -15,9 +15,9 @@
 
 pub mod calibration;
 pub mod calibration_files;
+pub mod mapping;
 pub mod matcher;
 pub mod night;
-pub mod mapping;
 pub mod pnp;
 pub mod rays;
 pub mod robust;

@@ -1,0 +1,369 @@
+//! `vgps replay DRIVE`: visual GPS for every frame of a logged drive, compared with the
+//! satellite GPS recorded alongside (and with truth when there is one); writes the report
+//! files of `docs/replay-report.md`.
+//!
+//! # Order and parallelism
+//! The localizer's state (motion model, mapped surrogates) forces frames to be localized in
+//! time order, on one thread. What does not depend on that state runs in parallel: decoding
+//! and lamp detection of the images (`--threads`), in batches of [`BATCH_FRAMES`] frames
+//! whose detections are then localized in order. From `detections.csv` the localizer alone
+//! runs, on one thread.
+
+use super::CliError;
+use crate::drive::{Drive, FrameStatus, GnssRecord, Strictness};
+use crate::geo::Geodetic;
+use crate::imaging::{DecodeLimits, LampDetector, check_dimensions, read_png};
+use crate::localizer::{
+    Frame, GnssPosition, LandmarkMap, Localizer, LocalizerFix, LocalizerOptions, LocalizerStatus,
+};
+use crate::report::{DriveInfo, FrameRecord, Report, Truth, VisualFix, summary_table};
+use nalgebra::Matrix2;
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Frames decoded and detected together before they are localized in order.
+pub const BATCH_FRAMES: usize = 64;
+/// Satellite GPS is interpolated between two epochs with a fix at most this far apart
+/// (seconds); a longer gap is a gap.
+pub const MAX_GNSS_INTERPOLATION_GAP_S: f64 = 1.0;
+
+/// Output formats of the summary on stdout.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum OutputFormat {
+    /// A table for people.
+    Text,
+    /// The `report.json` summary, for scripts.
+    Json,
+}
+
+/// Arguments of `vgps replay`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ReplayArgs {
+    /// The drive directory (with `drive.json`; see docs/drive-format.md).
+    pub drive: PathBuf,
+    /// Output directory (default: `DRIVE/replay`); created if missing, files replaced
+    /// atomically.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Threads for image decoding and lamp detection (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// No progress bar and no summary table.
+    #[arg(long)]
+    pub quiet: bool,
+    /// Summary format on stdout.
+    #[arg(long, value_enum, default_value = "text")]
+    pub format: OutputFormat,
+    /// Unknown keys in drive.json are an error (default: a warning).
+    #[arg(long)]
+    pub strict: bool,
+    /// Pixel σ of a detection (pixels).
+    #[arg(long, default_value_t = crate::localizer::DEFAULT_PIXEL_SIGMA_PX)]
+    pub pixel_sigma_px: f64,
+    /// Do not map secondary landmarks or use them as surrogates.
+    #[arg(long)]
+    pub no_surrogates: bool,
+    /// Do not use satellite GPS as a prior (only to compare with).
+    #[arg(long)]
+    pub no_gnss_prior: bool,
+    /// Detect lamps in the images even when the drive has `detections.csv`.
+    #[arg(long)]
+    pub from_images: bool,
+}
+
+/// What the detections of one frame came from, or why there are none.
+enum FrameDetections {
+    Ok(Vec<crate::drive::Detection>),
+    Bad(String),
+}
+
+/// Runs `vgps replay`.
+///
+/// # Errors
+/// [`CliError::Input`]/[`CliError::Calibration`] when the drive cannot be used at all;
+/// [`CliError::Output`] when an output cannot be written. Frames without a fix are reported
+/// in the outputs, not errors.
+pub fn run(args: &ReplayArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<(), CliError> {
+    if !(args.pixel_sigma_px.is_finite() && args.pixel_sigma_px > 0.0) {
+        return Err(CliError::Calibration(format!(
+            "--pixel-sigma-px {} is not a positive number",
+            args.pixel_sigma_px
+        )));
+    }
+    let strictness = if args.strict {
+        Strictness::Strict
+    } else {
+        Strictness::Lenient
+    };
+    let drive =
+        Drive::open(&args.drive, strictness).map_err(|e| CliError::Calibration(e.to_string()))?;
+    for w in drive.warnings() {
+        let _ = writeln!(err, "vgps: warning: {w}");
+    }
+    if let Some(stats) = drive.nmea_stats()
+        && stats.skipped() > 0
+    {
+        let _ = writeln!(
+            err,
+            "vgps: warning: {}: {} NMEA line(s) skipped (bad checksum, garbage or truncated)",
+            args.drive.display(),
+            stats.skipped()
+        );
+    }
+    let map = Arc::new(
+        LandmarkMap::from_landmarks(drive.landmarks(), None)
+            .map_err(|e| CliError::Calibration(format!("{}: {e}", args.drive.display())))?,
+    );
+    let rig = Arc::new(drive.rig().clone());
+    let options = LocalizerOptions {
+        pixel_sigma_px: args.pixel_sigma_px,
+        surrogates: !args.no_surrogates,
+        ..LocalizerOptions::default()
+    };
+    let mut localizer = Localizer::new(Arc::clone(&rig), Arc::clone(&map), options)
+        .map_err(|e| CliError::Internal(e.to_string()))?;
+    let from_images = args.from_images || drive.manifest().detections.is_none();
+    let threads = args
+        .threads
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+        .max(1);
+    let frames = drive.frames();
+    let progress = (!args.quiet && std::io::stderr().is_terminal()).then(|| {
+        let bar = indicatif::ProgressBar::new(frames.len() as u64);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{spinner} replay [{bar:40}] {pos}/{len} frames {per_sec} ETA {eta}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        bar
+    });
+    let mut records = Vec::with_capacity(frames.len());
+    for batch in frames.chunks(BATCH_FRAMES) {
+        let detections: Vec<FrameDetections> = if from_images {
+            detect_batch(&drive, batch, threads)
+        } else {
+            batch
+                .iter()
+                .map(|f| match drive.status(f.frame) {
+                    FrameStatus::Ok => FrameDetections::Ok(drive.detections(f.frame).to_vec()),
+                    FrameStatus::BadRows(messages) => {
+                        // The frame's readable rows are still used; the bad rows are reported.
+                        let _ = writeln!(err, "vgps: warning: {}", messages.join("; "));
+                        FrameDetections::Ok(drive.detections(f.frame).to_vec())
+                    }
+                })
+                .collect()
+        };
+        for (f, d) in batch.iter().zip(detections) {
+            let gnss = gnss_at(drive.gnss(), f.time_s);
+            let truth = drive.truth_of(f.frame).map(|t| Truth {
+                geodetic: t.position,
+                heading_deg: crate::simulate::heading_deg(&t.enu_from_rig),
+            });
+            let (status, visual) = match d {
+                FrameDetections::Bad(message) => {
+                    let _ = writeln!(err, "vgps: frame {}: {message}", f.frame);
+                    ("bad_image".to_string(), None)
+                }
+                FrameDetections::Ok(dets) => {
+                    let prior = if args.no_gnss_prior {
+                        None
+                    } else {
+                        gnss.map(|position| GnssPosition { position })
+                    };
+                    let fix =
+                        localizer.process(&Frame::from_detections(f.time_s, &dets, &map, prior));
+                    (fix.status.as_str().to_string(), visual_of(&fix))
+                }
+            };
+            records.push(FrameRecord {
+                frame: f.frame,
+                time_s: f.time_s,
+                status,
+                visual,
+                gnss,
+                truth,
+            });
+        }
+        if let Some(bar) = &progress {
+            bar.inc(batch.len() as u64);
+        }
+    }
+    if let Some(bar) = progress {
+        bar.finish_and_clear();
+    }
+    let out_dir = args
+        .out
+        .clone()
+        .unwrap_or_else(|| args.drive.join("replay"));
+    std::fs::create_dir_all(&out_dir).map_err(|e| {
+        CliError::Output(std::io::Error::new(
+            e.kind(),
+            format!("{}: {e}", out_dir.display()),
+        ))
+    })?;
+    let info = DriveInfo {
+        name: drive_name(&args.drive),
+        origin: map.frame().origin(),
+    };
+    let (report, _files) = crate::report::write_outputs(&out_dir, &info, &records)
+        .map_err(|e| CliError::Output(std::io::Error::other(e.to_string())))?;
+    write_summary(&report, args, &out_dir, out)
+}
+
+fn write_summary(
+    report: &Report,
+    args: &ReplayArgs,
+    out_dir: &Path,
+    out: &mut dyn Write,
+) -> Result<(), CliError> {
+    match args.format {
+        OutputFormat::Json => write!(out, "{}", report.to_json())?,
+        OutputFormat::Text if !args.quiet => {
+            write!(out, "{}", summary_table(report))?;
+            writeln!(out, "report: {}", out_dir.join("report.html").display())?;
+        }
+        OutputFormat::Text => {}
+    }
+    Ok(())
+}
+
+fn drive_name(dir: &Path) -> String {
+    dir.canonicalize()
+        .ok()
+        .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .unwrap_or_else(|| dir.display().to_string())
+}
+
+/// The report's view of a localizer fix.
+fn visual_of(fix: &LocalizerFix) -> Option<VisualFix> {
+    let e = fix.estimate.as_ref()?;
+    if fix.status != LocalizerStatus::Ok {
+        return None;
+    }
+    let [heading_deg, pitch_deg, roll_deg] = e.heading_pitch_roll.to_degrees();
+    let [sigma_e_m, sigma_n_m, sigma_u_m] = e.sigma_enu_m();
+    Some(VisualFix {
+        geodetic: e.geodetic,
+        heading_deg,
+        pitch_deg,
+        roll_deg,
+        enu_from_rig: e.enu_from_rig,
+        sigma_e_m,
+        sigma_n_m,
+        sigma_u_m,
+        horizontal_covariance_m2: Matrix2::new(
+            e.covariance[(0, 0)],
+            e.covariance[(0, 1)],
+            e.covariance[(1, 0)],
+            e.covariance[(1, 1)],
+        ),
+        n_landmarks: e.landmarks.len(),
+        n_surrogates: e.surrogates.len(),
+    })
+}
+
+/// The satellite position at `time_s`, interpolated between the two epochs with a fix
+/// around it when they are at most [`MAX_GNSS_INTERPOLATION_GAP_S`] apart.
+pub fn gnss_at(records: &[GnssRecord], time_s: f64) -> Option<Geodetic> {
+    let k = records.partition_point(|r| r.time_s <= time_s);
+    let before = records.get(k.checked_sub(1)?)?;
+    let a = before.fix?;
+    if (time_s - before.time_s).abs() < 1e-9 {
+        return Some(a.position);
+    }
+    let after = records.get(k)?;
+    let b = after.fix?;
+    let gap = after.time_s - before.time_s;
+    if !(gap > 0.0 && gap <= MAX_GNSS_INTERPOLATION_GAP_S) {
+        return None;
+    }
+    let w = (time_s - before.time_s) / gap;
+    // Interpolating in degrees over < 1 s of travel (tens of metres) is exact to well below
+    // a millimetre; longitude wrap-around is handled by interpolating the difference.
+    let dlon = (b.position.lon_deg - a.position.lon_deg + 540.0).rem_euclid(360.0) - 180.0;
+    let lon = a.position.lon_deg + w * dlon;
+    let lon = (lon + 540.0).rem_euclid(360.0) - 180.0;
+    Geodetic::try_new(
+        a.position.lat_deg + w * (b.position.lat_deg - a.position.lat_deg),
+        lon,
+        a.position.alt_m + w * (b.position.alt_m - a.position.alt_m),
+    )
+    .ok()
+}
+
+/// Decodes and detects the images of a batch of frames on `threads` threads.
+fn detect_batch(
+    drive: &Drive,
+    batch: &[crate::drive::Frame],
+    threads: usize,
+) -> Vec<FrameDetections> {
+    let detector = LampDetector::default();
+    let chunk = batch.len().div_ceil(threads).max(1);
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = batch
+            .chunks(chunk)
+            .map(|frames| {
+                let detector = &detector;
+                scope.spawn(move || {
+                    frames
+                        .iter()
+                        .map(|f| detect_frame(drive, f, detector))
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| {
+                h.join().unwrap_or_else(|_| {
+                    vec![FrameDetections::Bad("detection thread failed".into())]
+                })
+            })
+            .collect()
+    })
+}
+
+/// Decodes and detects one frame's images.
+fn detect_frame(
+    drive: &Drive,
+    frame: &crate::drive::Frame,
+    detector: &LampDetector,
+) -> FrameDetections {
+    if frame.images.iter().all(Option::is_none) {
+        return FrameDetections::Bad("no images and no detections".into());
+    }
+    let mut detections = Vec::new();
+    let mut problems = Vec::new();
+    for (camera, image) in frame.images.iter().enumerate() {
+        let Some(name) = image else { continue };
+        let Ok(rig_camera) = drive.rig().camera(camera) else {
+            problems.push(format!("{name}: camera {camera} is not in the calibration"));
+            continue;
+        };
+        let path = drive.dir().join(name);
+        let limits = DecodeLimits::for_camera(&rig_camera.model);
+        let decoded = read_png(&path, &limits)
+            .and_then(|img| check_dimensions(&img, &rig_camera.model, &path).map(|()| img))
+            .and_then(|img| detector.detect(&img, None));
+        match decoded {
+            Ok(found) => detections.extend(found.lamps.iter().map(|l| crate::drive::Detection {
+                frame: frame.frame,
+                camera,
+                u: l.u,
+                v: l.v,
+                strength: Some(l.strength),
+                class: None,
+            })),
+            Err(e) => problems.push(e.to_string()),
+        }
+    }
+    if problems.is_empty() || !detections.is_empty() && problems.len() < frame.images.len() {
+        // A frame with some unreadable images keeps the detections of the others.
+        FrameDetections::Ok(detections)
+    } else {
+        FrameDetections::Bad(problems.join("; "))
+    }
+}

@@ -1,0 +1,223 @@
+//! Tracking: associate each observation with the landmark (surveyed or surrogate) predicted
+//! nearest to it from a pose guess, then refine the pose on the associations.
+
+use crate::geometry::{Pose, Ray};
+use crate::solvers::refine_pose::refine_pose_with_sigmas;
+use crate::solvers::{RefineOptions, RobustLoss};
+use nalgebra::{Matrix6, Vector3};
+
+/// Where a candidate landmark comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum CandidateSource {
+    /// A surveyed landmark: its index in the map's database.
+    Surveyed(usize),
+    /// A surrogate (mapped) landmark: its track id.
+    Surrogate(u64),
+}
+
+/// A landmark the observations may be associated with.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Candidate {
+    pub position: Vector3<f64>,
+    /// Standard deviation of the position per axis (metres; isotropic bound).
+    pub sigma_m: f64,
+    pub class: Option<u32>,
+    pub source: CandidateSource,
+}
+
+/// One observation ready for tracking: its ray in the rig frame and angular σ.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ObsRay {
+    pub ray: Ray,
+    pub sigma_rad: f64,
+    pub class: Option<u32>,
+}
+
+/// The uncertainty of a pose guess, for the association gates.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct GuessUncertainty {
+    /// Position σ per axis, metres.
+    pub position_m: f64,
+    /// Attitude σ per axis, radians.
+    pub rotation_rad: f64,
+}
+
+/// The result of tracking.
+#[derive(Clone, Debug)]
+pub(crate) struct TrackResult {
+    pub world_from_rig: Pose,
+    pub covariance: Matrix6<f64>,
+    /// Per observation: the candidate index it is associated with (inliers only).
+    pub assignment: Vec<Option<usize>>,
+    pub rms_residual_rad: f64,
+    /// Mean squared normalised residual of the inliers.
+    pub mean_chi2: f64,
+}
+
+/// Gate on the normalised angular residual of an association (σ units).
+pub const ASSOCIATION_GATE_SIGMAS: f64 = 5.0;
+/// After refinement, an association whose normalised residual exceeds this is dropped.
+pub const OUTLIER_SIGMAS: f64 = 4.0;
+/// Association / refinement passes.
+pub const TRACKING_PASSES: usize = 3;
+
+/// The angular σ of candidate `c` seen from `origin_in_world`, given the guess uncertainty.
+fn predicted_sigma(obs: &ObsRay, c: &Candidate, range: f64, guess: &GuessUncertainty) -> f64 {
+    let lateral = (guess.position_m * guess.position_m + c.sigma_m * c.sigma_m) / (range * range);
+    (obs.sigma_rad * obs.sigma_rad + lateral + guess.rotation_rad * guess.rotation_rad).sqrt()
+}
+
+/// Associates observations with candidates one-to-one (smallest normalised residual first)
+/// from the pose guess; returns per observation the candidate index.
+fn associate(
+    pose: &Pose,
+    guess: &GuessUncertainty,
+    observations: &[ObsRay],
+    candidates: &[Candidate],
+    gate_sigmas: f64,
+    pairs: &mut Vec<(f64, usize, usize)>,
+) -> Vec<Option<usize>> {
+    pairs.clear();
+    let rig_from_world = pose.inverse();
+    for (ci, c) in candidates.iter().enumerate() {
+        let in_rig = rig_from_world * nalgebra::Point3::from(c.position);
+        for (oi, o) in observations.iter().enumerate() {
+            if let (Some(a), Some(b)) = (o.class, c.class)
+                && a != b
+            {
+                continue;
+            }
+            let v = in_rig.coords - o.ray.origin;
+            let range = v.norm();
+            if !(range > f64::EPSILON) {
+                continue;
+            }
+            let cos = o.ray.direction.dot(&v) / range;
+            if cos <= 0.0 {
+                continue;
+            }
+            let sin = o.ray.direction.cross(&v).norm() / range;
+            let sigma = predicted_sigma(o, c, range, guess);
+            let z = sin / sigma;
+            if z <= gate_sigmas {
+                pairs.push((z, oi, ci));
+            }
+        }
+    }
+    pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut assignment = vec![None; observations.len()];
+    let mut taken = vec![false; candidates.len()];
+    for &(_, oi, ci) in pairs.iter() {
+        if assignment[oi].is_none() && !taken[ci] {
+            assignment[oi] = Some(ci);
+            taken[ci] = true;
+        }
+    }
+    assignment
+}
+
+/// Tracks from a pose guess: associate, refine, drop outliers, re-associate with the
+/// refined pose. `None` when fewer than `min_correspondences` associations survive or the
+/// refinement fails.
+pub(crate) fn track(
+    guess_pose: &Pose,
+    guess: GuessUncertainty,
+    observations: &[ObsRay],
+    candidates: &[Candidate],
+    min_correspondences: usize,
+) -> Option<TrackResult> {
+    let mut pose = *guess_pose;
+    let mut uncertainty = guess;
+    let mut pairs = Vec::new();
+    let mut result: Option<TrackResult> = None;
+    let mut rays = Vec::with_capacity(observations.len());
+    let mut points = Vec::with_capacity(observations.len());
+    let mut sigmas = Vec::with_capacity(observations.len());
+    let mut index = Vec::with_capacity(observations.len());
+    let options = RefineOptions {
+        loss: RobustLoss::None,
+        accept_unconverged: true,
+        ..RefineOptions::default()
+    };
+    for _ in 0..TRACKING_PASSES {
+        let mut assignment = associate(
+            &pose,
+            &uncertainty,
+            observations,
+            candidates,
+            ASSOCIATION_GATE_SIGMAS,
+            &mut pairs,
+        );
+        let mut refined = None;
+        // Refine, drop the worst outlier-beyond-threshold, refine again.
+        for _ in 0..observations.len() {
+            rays.clear();
+            points.clear();
+            sigmas.clear();
+            index.clear();
+            for (oi, a) in assignment.iter().enumerate() {
+                if let Some(ci) = *a {
+                    let o = &observations[oi];
+                    let c = &candidates[ci];
+                    let range = (c.position - pose.translation.vector).norm().max(1.0);
+                    let s = (o.sigma_rad * o.sigma_rad + (c.sigma_m / range).powi(2)).sqrt();
+                    rays.push(o.ray);
+                    points.push(c.position);
+                    sigmas.push(s);
+                    index.push(oi);
+                }
+            }
+            if rays.len() < min_correspondences {
+                return result;
+            }
+            let r = refine_pose_with_sigmas(&pose, &rays, &points, &sigmas, &options).ok()?;
+            // Normalised residuals at the refined pose.
+            let rig_from_world = r.world_from_rig.inverse();
+            let mut worst = (0.0, usize::MAX);
+            let mut chi2 = 0.0;
+            for k in 0..rays.len() {
+                let v =
+                    (rig_from_world * nalgebra::Point3::from(points[k])).coords - rays[k].origin;
+                let n = v.norm().max(f64::EPSILON);
+                let sin = rays[k].direction.cross(&v).norm() / n;
+                let z = sin / sigmas[k];
+                chi2 += z * z;
+                if z > worst.0 {
+                    worst = (z, k);
+                }
+            }
+            if worst.0 > OUTLIER_SIGMAS && worst.1 < index.len() {
+                assignment[index[worst.1]] = None;
+                continue;
+            }
+            refined = Some((r, chi2 / rays.len() as f64));
+            break;
+        }
+        let (r, mean_chi2) = refined?;
+        pose = r.world_from_rig;
+        uncertainty = GuessUncertainty {
+            position_m: (r.covariance[(0, 0)] + r.covariance[(1, 1)] + r.covariance[(2, 2)])
+                .max(0.0)
+                .sqrt()
+                .max(1e-3),
+            rotation_rad: (r.covariance[(3, 3)] + r.covariance[(4, 4)] + r.covariance[(5, 5)])
+                .max(0.0)
+                .sqrt()
+                .max(1e-5),
+        };
+        let unchanged = result
+            .as_ref()
+            .is_some_and(|prev| prev.assignment == assignment);
+        result = Some(TrackResult {
+            world_from_rig: r.world_from_rig,
+            covariance: r.covariance,
+            assignment,
+            rms_residual_rad: r.rms_residual_rad,
+            mean_chi2,
+        });
+        if unchanged {
+            break;
+        }
+    }
+    result
+}
