@@ -67,7 +67,9 @@ use crate::attitude::HeadingPitchRoll;
 use crate::calibration::{CameraModel, Pixel, Rig};
 use crate::geo::Geodetic;
 use crate::geometry::{Pose, Ray};
-use crate::mapping::{LandmarkMapper, MappedLandmark, MapperOptions, MappingFrame, RigObservation};
+use crate::mapping::{
+    LandmarkMapper, MappedLandmark, MapperOptions, MappingFrame, NearbySurrogate, RigObservation,
+};
 use crate::matcher::{Detection, MatchOptions, MatchStatus, SearchArea, match_detections};
 use nalgebra::{Matrix6, Rotation3, UnitQuaternion, Vector3};
 use std::sync::Arc;
@@ -100,6 +102,9 @@ pub const DEFAULT_REACQUIRE_MARGIN_M: f64 = 5.0;
 pub const DEFAULT_COLD_START_INTERVAL_S: f64 = 10.0;
 /// Surrogates are refreshed from the mapper every this many processed frames.
 pub const SURROGATE_REFRESH_FRAMES: usize = 3;
+/// Surrogates are kept within the visibility range plus this margin of the last fix
+/// (metres), enough for [`SURROGATE_REFRESH_FRAMES`] frames of travel.
+pub const SURROGATE_MARGIN_M: f64 = 20.0;
 /// Vertical half-range of a matcher search area around a prior (metres).
 pub const PRIOR_VERTICAL_HALF_RANGE_M: f64 = 3.0;
 
@@ -378,7 +383,7 @@ pub struct Localizer {
     options: LocalizerOptions,
     state: Option<MotionState>,
     mapper: LandmarkMapper,
-    surrogates: Vec<MappedLandmark>,
+    surrogates: Vec<NearbySurrogate>,
     frames_since_refresh: usize,
     last_cold_start_s: Option<f64>,
     neighbours: Vec<usize>,
@@ -439,8 +444,9 @@ impl Localizer {
         &self.map
     }
 
-    /// The current surrogate landmarks (mapped landmarks that meet the surrogate criteria).
-    pub fn surrogates(&self) -> &[MappedLandmark] {
+    /// The surrogate landmarks near the last fix (mapped landmarks that meet the surrogate
+    /// criteria), as refreshed every [`SURROGATE_REFRESH_FRAMES`] frames.
+    pub fn surrogates(&self) -> &[NearbySurrogate] {
         &self.surrogates
     }
 
@@ -533,6 +539,25 @@ impl Localizer {
                 CandidateSource::Surrogate(id) => surrogates.push(id),
             }
         }
+        // The reported covariance adds the error shared with surrogates; the motion model and
+        // the mapper keep the refinement's own covariance (the shared part is already inside
+        // the surrogates they work with).
+        let mut reported = t.clone();
+        let n_surveyed = t
+            .assignment
+            .iter()
+            .flatten()
+            .filter(|&&ci| matches!(candidates[ci].source, CandidateSource::Surveyed(_)))
+            .count();
+        add_common_mode(&mut reported, &candidates, &observations);
+        // Without three surveyed landmarks the pose inherits the surrogates' shared error:
+        // the motion model and the mapper carry it on, so covariance grows along a
+        // surrogate-only stretch.
+        let t = if n_surveyed < crate::fix::MIN_OBSERVATIONS {
+            reported.clone()
+        } else {
+            t
+        };
         let position = t.world_from_rig.translation.vector;
         let Ok(geodetic) = self.map.frame().try_to_geodetic(&position) else {
             fix.message = "the fix is outside the supported heights".into();
@@ -555,7 +580,7 @@ impl Localizer {
         );
         fix.estimate = Some(Estimate {
             world_from_rig: t.world_from_rig,
-            covariance: t.covariance,
+            covariance: reported.covariance,
             geodetic,
             enu_from_rig: UnitQuaternion::from_rotation_matrix(&enu_from_rig),
             heading_pitch_roll,
@@ -659,17 +684,24 @@ impl Localizer {
                     sigma_m: l.sigma_m,
                     class: l.class,
                     source: CandidateSource::Surveyed(k),
+                    common_covariance: None,
                 })
             })
             .collect();
         if self.options.surrogates {
             for s in &self.surrogates {
-                if (s.position_enu - position).norm() <= range {
+                let l = &s.landmark;
+                if (l.position_enu - position).norm() <= range {
+                    // Gates and weights use the surrogate's own covariance (what varies
+                    // between surrogates); the shared part only widens the fix's covariance.
+                    let common = l.covariance + s.pose_floor_covariance;
+                    let worst = l.covariance.symmetric_eigenvalues().max().max(0.0).sqrt();
                     out.push(Candidate {
-                        position: s.position_enu,
-                        sigma_m: s.sigma_m(),
-                        class: s.class,
-                        source: CandidateSource::Surrogate(s.id),
+                        position: l.position_enu,
+                        sigma_m: worst,
+                        class: l.class,
+                        source: CandidateSource::Surrogate(l.id),
+                        common_covariance: Some(common),
                     });
                 }
             }
@@ -848,7 +880,44 @@ impl Localizer {
         self.frames_since_refresh += 1;
         if self.frames_since_refresh >= SURROGATE_REFRESH_FRAMES {
             self.frames_since_refresh = 0;
-            self.surrogates = self.mapper.surrogates();
+            let radius = self.options.matcher.visibility_range_m + SURROGATE_MARGIN_M;
+            self.surrogates = self
+                .mapper
+                .surrogates_near(&t.world_from_rig.translation.vector, radius);
         }
+    }
+}
+
+/// Adds to a fix's position covariance the error it shares with its surrogates.
+///
+/// Surrogates mapped from the same drifting poses share one error, which averaging over
+/// them does not reduce. If they all moved by `δ`, the fix would move by about `f·δ`, with
+/// `f` the share of the fix's information that comes from surrogates (weights `1/σᵢ²` of the
+/// associations). The added term is `f²·Σ̄`, with `Σ̄` the mean of the surrogates' full
+/// covariances including their pose-correlation floor.
+fn add_common_mode(t: &mut track::TrackResult, candidates: &[Candidate], observations: &[ObsRay]) {
+    let mut total = 0.0;
+    let mut from_surrogates = 0.0;
+    let mut common = nalgebra::Matrix3::zeros();
+    let mut n_common = 0.0;
+    let p = t.world_from_rig.translation.vector;
+    for (o, a) in observations.iter().zip(&t.assignment) {
+        let Some(c) = a.map(|ci| &candidates[ci]) else {
+            continue;
+        };
+        let range = (c.position - p).norm().max(1.0);
+        let w = 1.0 / (o.sigma_rad * o.sigma_rad + (c.sigma_m / range).powi(2));
+        total += w;
+        if let Some(cov) = c.common_covariance {
+            from_surrogates += w;
+            common += cov;
+            n_common += 1.0;
+        }
+    }
+    if n_common > 0.0 && total > 0.0 {
+        let f = from_surrogates / total;
+        let add = common * (f * f / n_common);
+        let mut block = t.covariance.fixed_view_mut::<3, 3>(0, 0);
+        block += add;
     }
 }

@@ -23,6 +23,9 @@ pub(crate) struct Candidate {
     pub sigma_m: f64,
     pub class: Option<u32>,
     pub source: CandidateSource,
+    /// For a surrogate: its full covariance plus its pose-correlation floor (m²), the
+    /// error it shares with the poses it was mapped from.
+    pub common_covariance: Option<nalgebra::Matrix3<f64>>,
 }
 
 /// One observation ready for tracking: its ray in the rig frame and angular σ.

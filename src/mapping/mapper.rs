@@ -10,7 +10,7 @@ use crate::synthetic::tangent_basis;
 use crate::triangulation::{
     RayObservation, RaySum, TriangulatedPoint, TriangulationError, intersect_two_rays,
 };
-use nalgebra::{Matrix2, Vector2, Vector3};
+use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 
 /// Options of the [`LandmarkMapper`]; `Default` gives the documented constants.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -425,6 +425,51 @@ impl LandmarkMapper {
             .collect()
     }
 
+    /// The surrogates within `radius_m` of `position_in_world`, from each track's running
+    /// estimate (no re-refinement: cheap enough to call every frame), with the
+    /// pose-correlation floor of each (see [`NearbySurrogate`]).
+    pub fn surrogates_near(
+        &self,
+        position_in_world: &Vector3<f64>,
+        radius_m: f64,
+    ) -> Vec<NearbySurrogate> {
+        let c = self.options.surrogate;
+        self.tracks
+            .iter()
+            .filter(|t| t.rays.len() >= c.min_rays.max(self.options.min_landmark_rays))
+            .filter_map(|t| {
+                let running = t.estimate.as_ref()?;
+                if (running.point - position_in_world).norm() > radius_m {
+                    return None;
+                }
+                let e = refine_landmark(&t.rays).ok()?;
+                let landmark = MappedLandmark {
+                    id: t.id,
+                    position_enu: e.point,
+                    covariance: e.covariance,
+                    n_obs: t.rays.len(),
+                    max_parallax_rad: e.max_parallax_rad(),
+                    class: t.class,
+                };
+                if !c.accepts(&landmark) {
+                    return None;
+                }
+                let n = t.rays.len() as f64;
+                let pose_floor_covariance = t
+                    .rays
+                    .iter()
+                    .fold(Matrix3::zeros(), |acc, r| {
+                        acc + r.pose_covariance.fixed_view::<3, 3>(0, 0)
+                    })
+                    / n;
+                Some(NearbySurrogate {
+                    landmark,
+                    pose_floor_covariance,
+                })
+            })
+            .collect()
+    }
+
     /// The sources `(frame number, observation index)` of every reported landmark's rays,
     /// keyed by landmark id.
     pub fn associations(&self) -> Vec<(u64, Vec<(usize, usize)>)> {
@@ -434,6 +479,18 @@ impl LandmarkMapper {
             .map(|t| (t.id, t.sources.clone()))
             .collect()
     }
+}
+
+/// A surrogate near a position, for the localizer.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NearbySurrogate {
+    /// The landmark (running estimate of its track).
+    pub landmark: MappedLandmark,
+    /// Mean position covariance of the poses its rays were seen from (m²): the part of its
+    /// error that does not average out over its rays when those poses' errors are
+    /// correlated — as they are along a stretch fixed from surrogates alone, where every
+    /// pose inherits the same drift. Add it to `landmark.covariance` for an honest bound.
+    pub pose_floor_covariance: Matrix3<f64>,
 }
 
 /// True when two optional class labels may belong to one landmark.

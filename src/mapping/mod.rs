@@ -47,7 +47,7 @@ pub use calibrate::{
     calibrate_gps_offset,
 };
 pub use frame::{MappingFrame, RigObservation};
-pub use mapper::{LandmarkMapper, MAX_PAIRWISE_RAYS, MapperOptions};
+pub use mapper::{LandmarkMapper, MAX_PAIRWISE_RAYS, MapperOptions, NearbySurrogate};
 pub use refine::{MapRay, ray_residual_covariance, refine_landmark};
 pub use survey::{
     CameraFrame, GpsSample, SIGMA_LEVEL_RAD, Survey, SurveyOptions, gps_pose_at, landmarks_csv,
