@@ -6,6 +6,7 @@ mod calibration;
 mod fix;
 mod geo;
 mod imaging;
+mod localizer;
 mod mapping;
 mod p3p;
 mod p3p_cosines;
@@ -20,6 +21,7 @@ criterion_group!(
     fix::benches,
     geo::benches,
     imaging::benches,
+    localizer::benches,
     mapping::benches,
     p3p::benches,
     p3p_cosines::benches,

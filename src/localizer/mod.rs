@@ -375,8 +375,9 @@ struct MotionState {
     angular_velocity: Vector3<f64>,
 }
 
-/// The localizer (see the module docs).
-#[derive(Debug)]
+/// The localizer (see the module docs). Cloning it forks its state (motion model and
+/// mapped landmarks); the map stays shared.
+#[derive(Clone, Debug)]
 pub struct Localizer {
     rig: Arc<Rig>,
     map: Arc<LandmarkMap>,

@@ -299,7 +299,7 @@ impl LandmarkMapper {
                         if !classes_match(track.class, o.class) {
                             continue;
                         }
-                        if let Some(m) = gate_estimate(est, ray, opts.max_range_m)
+                        if let Some(m) = gate_estimate(est, ray, opts.max_range_m, opts.gate_chi2_2dof)
                             && m <= opts.gate_chi2_2dof
                         {
                             candidates.push((0, m, k, ti));
@@ -319,10 +319,19 @@ impl LandmarkMapper {
                         }
                         // The new ray must pass near every recent ray of the track.
                         let start = track.rays.len().saturating_sub(MAX_PAIRWISE_RAYS);
-                        let worst = track.rays[start..]
-                            .iter()
-                            .map(|r| gate_two_rays(r, ray, &opts))
-                            .try_fold(0.0f64, |acc, m| m.map(|m| acc.max(m)));
+                        // Most recent first; stop at the first ray that fails the gate.
+                        let mut worst = Some(0.0f64);
+                        for r in track.rays[start..].iter().rev() {
+                            match gate_two_rays(r, ray, &opts) {
+                                Some(m) if m <= opts.gate_chi2_1dof => {
+                                    worst = worst.map(|w| w.max(m));
+                                }
+                                _ => {
+                                    worst = None;
+                                    break;
+                                }
+                            }
+                        }
                         if let Some(m) = worst
                             && m <= opts.gate_chi2_1dof
                         {
@@ -506,12 +515,31 @@ fn classes_match(a: Option<u32>, b: Option<u32>) -> bool {
 /// estimate is behind the ray or beyond `max_range_m`. The ray's own residual covariance is
 /// the full propagation of [`super::ray_residual_covariance`].
 #[inline]
-fn gate_estimate(est: &TriangulatedPoint, ray: &MapRay, max_range_m: f64) -> Option<f64> {
+fn gate_estimate(
+    est: &TriangulatedPoint,
+    ray: &MapRay,
+    max_range_m: f64,
+    gate: f64,
+) -> Option<f64> {
     let u = ray.ray.direction;
     let r = est.point - ray.ray.origin;
     let range = r.dot(&u);
     if !(range > 0.0 && range <= max_range_m) {
         return None;
+    }
+    // Cheap early rejection (as in `gate_two_rays`): with `tr Σ̂` plus the ray's variance
+    // bound above every variance, `|r⊥|² / bound ≤ m`; beyond the gate, skip the exact form.
+    let perp2 = (r - u * range).norm_squared();
+    let cp = &ray.pose_covariance;
+    let pos = (cp[(0, 0)] + cp[(1, 1)] + cp[(2, 2)]).max(0.0).sqrt();
+    let rot = (cp[(3, 3)] + cp[(4, 4)] + cp[(5, 5)]).max(0.0).sqrt();
+    let lever = (est.point - ray.rig_origin).norm();
+    let var_bound = est.covariance.trace().max(0.0)
+        + (pos + lever * rot).powi(2)
+        + (range * ray.sigma_rad).powi(2);
+    if perp2 > gate * var_bound {
+        let m = perp2 / var_bound;
+        return m.is_finite().then_some(m);
     }
     let (e1, e2) = tangent_basis(&u);
     let rv = Vector2::new(e1.dot(&r), e2.dot(&r));
@@ -571,6 +599,23 @@ fn gate_two_rays(a: &MapRay, b: &MapRay, opts: &MapperOptions) -> Option<f64> {
     let gap = g.norm();
     if gap == 0.0 {
         return Some(0.0);
+    }
+    // Cheap early rejection: an upper bound on each ray's residual variance along any
+    // direction, `(√tr Σ_pp + r·√tr Σ_θθ)² + d²σ²` (r: lever arm from the rig, d: range),
+    // gives a lower bound on `m`; when even that exceeds the gate, the exact variance is not
+    // needed.
+    let bound = |ray: &MapRay, p: &Vector3<f64>| {
+        let c = &ray.pose_covariance;
+        let pos = (c[(0, 0)] + c[(1, 1)] + c[(2, 2)]).max(0.0).sqrt();
+        let rot = (c[(3, 3)] + c[(4, 4)] + c[(5, 5)]).max(0.0).sqrt();
+        let lever = (p - ray.rig_origin).norm();
+        let d = (p - ray.ray.origin).norm();
+        (pos + lever * rot).powi(2) + (d * ray.sigma_rad).powi(2)
+    };
+    let var_bound = bound(a, &pa) + bound(b, &pb);
+    if gap * gap > opts.gate_chi2_1dof * var_bound {
+        let m = gap * gap / var_bound;
+        return m.is_finite().then_some(m);
     }
     let gh = g / gap;
     let var = gh.dot(&(ray_residual_covariance(a, &pa) * gh))
