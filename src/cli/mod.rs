@@ -11,6 +11,7 @@
 pub mod args;
 pub mod calib;
 pub mod demo;
+pub mod detect;
 pub mod locate;
 pub mod replay;
 pub mod simulate;
@@ -90,6 +91,7 @@ where
         Settings::Demo => demo::run(out),
         Settings::Simulate(a) => simulate::run(&a, out),
         Settings::Replay(a) => replay::run(&a, out, err),
+        Settings::Detect(a) => detect::run(&a, out, err),
         // Handled above: `vgps calib` reports on its own.
         Settings::Calib(_) => Ok(()),
     });

@@ -12,7 +12,7 @@
 use super::CliError;
 use crate::drive::{Drive, FrameStatus, GnssRecord, Strictness};
 use crate::geo::Geodetic;
-use crate::imaging::{DecodeLimits, LampDetector, check_dimensions, read_png};
+use crate::imaging::LampDetector;
 use crate::localizer::{
     Frame, GnssPosition, LandmarkMap, Localizer, LocalizerFix, LocalizerOptions, LocalizerStatus,
 };
@@ -335,35 +335,12 @@ fn detect_frame(
     if frame.images.iter().all(Option::is_none) {
         return FrameDetections::Bad("no images and no detections".into());
     }
-    let mut detections = Vec::new();
-    let mut problems = Vec::new();
-    for (camera, image) in frame.images.iter().enumerate() {
-        let Some(name) = image else { continue };
-        let Ok(rig_camera) = drive.rig().camera(camera) else {
-            problems.push(format!("{name}: camera {camera} is not in the calibration"));
-            continue;
-        };
-        let path = drive.dir().join(name);
-        let limits = DecodeLimits::for_camera(&rig_camera.model);
-        let decoded = read_png(&path, &limits)
-            .and_then(|img| check_dimensions(&img, &rig_camera.model, &path).map(|()| img))
-            .and_then(|img| detector.detect(&img, None));
-        match decoded {
-            Ok(found) => detections.extend(found.lamps.iter().map(|l| crate::drive::Detection {
-                frame: frame.frame,
-                camera,
-                u: l.u,
-                v: l.v,
-                strength: Some(l.strength),
-                class: None,
-            })),
-            Err(e) => problems.push(e.to_string()),
-        }
-    }
-    if problems.is_empty() || !detections.is_empty() && problems.len() < frame.images.len() {
+    let result = crate::imaging::detect_frame_images(drive.dir(), frame, drive.rig(), detector);
+    let problems = result.problems.len();
+    if problems == 0 || !result.detections.is_empty() && problems < frame.images.len() {
         // A frame with some unreadable images keeps the detections of the others.
-        FrameDetections::Ok(detections)
+        FrameDetections::Ok(result.detections)
     } else {
-        FrameDetections::Bad(problems.join("; "))
+        FrameDetections::Bad(result.problem_text())
     }
 }

@@ -36,6 +36,17 @@ pub struct SimulateArgs {
     /// World origin `LAT,LON` in degrees (default 37.7793,-122.4193, San Francisco).
     #[arg(long, value_parser = parse_origin, allow_hyphen_values = true)]
     pub origin: Option<Geodetic>,
+    /// Also render every camera's night image of every frame (PNG under `images/`, image
+    /// columns in `frames.csv`, sidecar `images_truth.csv`).
+    #[arg(long)]
+    pub images: bool,
+    /// Threads rendering and encoding the images (default: all cores; the files do not
+    /// depend on it).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 fn parse_origin(text: &str) -> Result<Geodetic, String> {
@@ -86,6 +97,11 @@ pub fn run(args: &SimulateArgs, out: &mut dyn Write) -> Result<(), CliError> {
     drive
         .write(&args.out)
         .map_err(|e| CliError::Output(std::io::Error::other(e.to_string())))?;
+    let images = if args.images {
+        Some(write_images(&drive, args)?)
+    } else {
+        None
+    };
     let (true_det, false_det, _) = drive.detection_counts();
     let surveyed = drive.world.landmarks.iter().filter(|l| l.surveyed).count();
     writeln!(
@@ -102,5 +118,56 @@ pub fn run(args: &SimulateArgs, out: &mut dyn Write) -> Result<(), CliError> {
         100.0 * drive.outage_fraction(),
         started.elapsed().as_secs_f64()
     )?;
+    if let Some(s) = images {
+        writeln!(
+            out,
+            "{}: {} images, {:.1} MB ({} lamp, {} transient, {} clutter spots)",
+            args.out.join(crate::simulate::images::IMAGES_DIR).display(),
+            s.images,
+            s.bytes as f64 / 1e6,
+            s.lamps,
+            s.transients,
+            s.clutter
+        )?;
+    }
     Ok(())
+}
+
+/// Renders and writes the images of `drive` (`--images`), with a progress bar on a terminal.
+fn write_images(
+    drive: &crate::simulate::SimulatedDrive,
+    args: &SimulateArgs,
+) -> Result<crate::simulate::images::ImagesSummary, CliError> {
+    use std::io::IsTerminal;
+    let threads = args
+        .threads
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+        .max(1);
+    let bar = (!args.quiet && std::io::stderr().is_terminal()).then(|| {
+        let bar = indicatif::ProgressBar::new(drive.frames.len() as u64);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{spinner} images [{bar:40}] {pos}/{len} frames {per_sec} ETA {eta}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        bar
+    });
+    let progress = |n: u64| {
+        if let Some(bar) = &bar {
+            bar.inc(n);
+        }
+    };
+    let result = crate::simulate::images::write_images(
+        drive,
+        &args.out,
+        &crate::simulate::images::ImageOptions::default(),
+        threads,
+        &progress,
+    )
+    .map_err(|e| CliError::Output(std::io::Error::other(e.to_string())));
+    if let Some(bar) = bar {
+        bar.finish_and_clear();
+    }
+    result
 }

@@ -39,12 +39,14 @@
 
 pub mod decode;
 pub mod detect;
+pub mod frames;
 pub mod render;
 
 pub use decode::{DecodeLimits, check_dimensions, decode_png, read_png};
 pub use detect::{
     CentroidWeight, Detections, DetectorConfig, LampDetection, LampDetector, Mask, Threshold,
 };
+pub use frames::{FrameImageResult, ImageProblem, ImageProblemKind, detect_frame_images};
 pub use render::{
     LightSource, RenderOptions, RenderedFrame, RenderedSpot, Renderer, SpotKind, encode_png,
     render_camera,

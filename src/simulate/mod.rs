@@ -29,6 +29,7 @@
 //! # Ok::<(), vgps::simulate::SimulateError>(())
 //! ```
 
+pub mod images;
 mod route;
 mod world;
 
