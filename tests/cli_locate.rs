@@ -438,21 +438,40 @@ fn usage_errors_exit_2() {
 }
 
 #[test]
-fn demo_runs_and_says_what_it_is() {
-    let out = vgps(&["demo"]);
-    assert_eq!(out.status.code(), Some(0));
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(text.contains("arrives with the simulation and replay issues"));
-    let fixes: Vec<Value> = text
-        .lines()
-        .filter(|l| l.starts_with('{'))
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
-    assert_eq!(fixes.len(), 2);
-    assert!(fixes.iter().all(|f| f["status"] == "ok"));
-    // The wrongly labelled observation of frame 0 is rejected.
-    assert_eq!(fixes[0]["inliers"], 7);
-    assert!(fixes[0]["landmarks"][4].is_null());
+fn demo_simulates_and_replays_the_reference_drive() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("demo");
+    let out = vgps(&[
+        "demo",
+        "--out",
+        out_dir.to_str().unwrap(),
+        "--format",
+        "json",
+    ]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["frames"], 3255);
+    // The localizer issue's targets on the reference drive, as the demo shows them.
+    assert!(report["visual_fix_rate"].as_f64().unwrap() >= 0.99);
+    let h = &report["visual_vs_truth"]["horizontal_m"];
+    assert!(h["cep50"].as_f64().unwrap() <= 0.05, "{h}");
+    for name in [
+        "fixes.csv",
+        "report.json",
+        "report.html",
+        "track.geojson",
+        "track.kml",
+        "track.gpx",
+        "fixes.nmea",
+    ] {
+        assert!(out_dir.join("replay").join(name).is_file(), "{name}");
+    }
+    assert!(out_dir.join("reference/drive.json").is_file());
 }
 
 /// Pixel observations through the shipped Ladybug2 calibration: the rays start at the

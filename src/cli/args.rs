@@ -34,8 +34,8 @@ pub enum Command {
     Locate(LocateArgs),
     /// Landmark positions from rays seen at known positions (CSV).
     Triangulate(TriangulateArgs),
-    /// A small built-in example on synthetic data.
-    Demo,
+    /// The main job end to end: simulate the reference drive, replay it, print the summary.
+    Demo(super::demo::DemoArgs),
     /// Inspect, check, use and convert calibration files.
     Calib(super::calib::CalibArgs),
     /// Write a simulated drive (city, route, detections, GPS with outages, truth).
@@ -170,7 +170,7 @@ pub enum Settings {
     /// `vgps triangulate`.
     Triangulate(TriangulateSettings),
     /// `vgps demo`.
-    Demo,
+    Demo(super::demo::DemoArgs),
     /// `vgps calib …` (validated by its own module).
     Calib(super::calib::CalibArgs),
     /// `vgps simulate`.
@@ -198,7 +198,7 @@ impl TryFrom<Cli> for Settings {
                 sigma_ang_rad: a.sigma_deg.to_radians(),
                 sigma_pos_m: a.sigma_pos_m,
             }),
-            Command::Demo => Settings::Demo,
+            Command::Demo(a) => Settings::Demo(a),
             Command::Calib(a) => Settings::Calib(a),
             Command::Simulate(a) => Settings::Simulate(a),
             Command::Replay(a) => Settings::Replay(a),

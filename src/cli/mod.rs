@@ -88,7 +88,7 @@ where
     let result = Settings::try_from(cli).and_then(|settings| match settings {
         Settings::Locate(s) => locate::run(&s, out, err),
         Settings::Triangulate(s) => triangulate::run(&s, out, err),
-        Settings::Demo => demo::run(out),
+        Settings::Demo(a) => demo::run(&a, out, err),
         Settings::Simulate(a) => simulate::run(&a, out),
         Settings::Replay(a) => replay::run(&a, out, err),
         Settings::Detect(a) => detect::run(&a, out, err),

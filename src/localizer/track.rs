@@ -92,7 +92,7 @@ fn associate(
             }
             let v = in_rig.coords - o.ray.origin;
             let range = v.norm();
-            if !(range > f64::EPSILON) {
+            if !range.is_finite() || range <= f64::EPSILON {
                 continue;
             }
             let cos = o.ray.direction.dot(&v) / range;

@@ -299,7 +299,8 @@ impl LandmarkMapper {
                         if !classes_match(track.class, o.class) {
                             continue;
                         }
-                        if let Some(m) = gate_estimate(est, ray, opts.max_range_m, opts.gate_chi2_2dof)
+                        if let Some(m) =
+                            gate_estimate(est, ray, opts.max_range_m, opts.gate_chi2_2dof)
                             && m <= opts.gate_chi2_2dof
                         {
                             candidates.push((0, m, k, ti));
@@ -464,13 +465,9 @@ impl LandmarkMapper {
                     return None;
                 }
                 let n = t.rays.len() as f64;
-                let pose_floor_covariance = t
-                    .rays
-                    .iter()
-                    .fold(Matrix3::zeros(), |acc, r| {
-                        acc + r.pose_covariance.fixed_view::<3, 3>(0, 0)
-                    })
-                    / n;
+                let pose_floor_covariance = t.rays.iter().fold(Matrix3::zeros(), |acc, r| {
+                    acc + r.pose_covariance.fixed_view::<3, 3>(0, 0)
+                }) / n;
                 Some(NearbySurrogate {
                     landmark,
                     pose_floor_covariance,
