@@ -177,6 +177,10 @@ pub struct Report {
     pub status_counts: BTreeMap<String, u64>,
     /// Visual fix against truth; `null` when no frame has both.
     pub visual_vs_truth: Option<Comparison>,
+    /// Visual fix against truth over the fixes that used at least
+    /// [`crate::report::MIN_SURVEYED_LANDMARKS`] surveyed landmarks (the accuracy the
+    /// localizer targets where the survey covers the street); `null` when none.
+    pub visual_vs_truth_surveyed: Option<Comparison>,
     /// Satellite against truth; `null` when no frame has both.
     pub gnss_vs_truth: Option<Comparison>,
     /// Visual fix against satellite; `null` when no frame has both.
@@ -259,6 +263,17 @@ impl Report {
             visual_fix_rate: rate(visual_fixes, frames),
             status_counts,
             visual_vs_truth: pick(|g| g.visual_vs_truth, false),
+            visual_vs_truth_surveyed: Comparison::from_diffs(
+                records
+                    .iter()
+                    .zip(&geom)
+                    .filter(|(r, _)| {
+                        r.visual
+                            .as_ref()
+                            .is_some_and(|v| v.n_landmarks >= crate::report::MIN_SURVEYED_LANDMARKS)
+                    })
+                    .filter_map(|(_, g)| g.visual_vs_truth),
+            ),
             gnss_vs_truth: pick(|g| g.gnss_vs_truth, false),
             visual_vs_gnss: pick(|g| g.visual_vs_gnss, false),
             blackout,

@@ -14,7 +14,11 @@ fn pct(x: Option<f64>) -> String {
     opt(x.map(|v| 100.0 * v), 1) + "%"
 }
 
-fn comparison_rows(s: &mut String, indent: &str, rows: [(&str, &Option<Comparison>); 3]) {
+fn comparison_rows<const N: usize>(
+    s: &mut String,
+    indent: &str,
+    rows: [(&str, &Option<Comparison>); N],
+) {
     for (name, c) in rows {
         let Some(c) = c else { continue };
         let h = &c.horizontal_m;
@@ -60,6 +64,7 @@ pub fn summary_table(report: &Report) -> String {
         "",
         [
             ("visual vs truth", &report.visual_vs_truth),
+            ("  ≥3 surveyed", &report.visual_vs_truth_surveyed),
             ("satellite vs truth", &report.gnss_vs_truth),
             ("visual vs sat.", &report.visual_vs_gnss),
         ],
