@@ -1,10 +1,12 @@
 //! `vgps::localizer::Localizer::process` over the reference drive (3,255 frames at 15 fps,
 //! ~40 detections per frame of which 20% false, a 330 m stretch without surveyed landmarks):
 //! the whole drive after the first fix, i.e. tracking, surrogate mapping and the occasional
-//! re-acquisition. Criterion reports frames per second.
+//! re-acquisition, with the drive's satellite GPS as `vgps replay` gives it. Criterion reports
+//! frames per second.
 use criterion::{BatchSize, Criterion, Throughput};
 use std::sync::Arc;
 use vgps::localizer::{Frame, GnssPosition, LandmarkMap, Localizer, LocalizerOptions};
+use vgps::cli::replay::gnss_at;
 use vgps::simulate::{Preset, Scenario, simulate};
 
 /// Benchmark of `process` on every frame of the reference drive but the first.
@@ -18,15 +20,11 @@ pub fn benches(c: &mut Criterion) {
         .iter()
         .map(|f| {
             let detections: Vec<_> = f.detections.iter().map(|d| d.detection.clone()).collect();
-            Frame::from_detections(f.time_s, &detections, &map, None)
+            let gnss = gnss_at(&drive.gnss, f.time_s).map(|position| GnssPosition { position });
+            Frame::from_detections(f.time_s, &detections, &map, gnss)
         })
         .collect();
-    let mut first = frames[0].clone();
-    let start = map
-        .frame()
-        .try_to_geodetic(&drive.frames[0].world_from_rig.translation.vector)
-        .expect("start");
-    first.gnss = Some(GnssPosition { position: start });
+    let first = frames[0].clone();
     let mut warmed = Localizer::new(rig, map, LocalizerOptions::default()).expect("localizer");
     warmed.process(&first);
     let mut group = c.benchmark_group("localizer");
