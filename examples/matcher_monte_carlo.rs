@@ -43,6 +43,19 @@ fn main() {
     let frame_config = FrameConfig::default();
     let options = MatchOptions {
         sigma_rad: frame_config.sigma_rad,
+        // UP_TOL_DEG=4: the vertical is known to 4° (the rig tilts by up to 3°).
+        up_in_rig: std::env::var("UP_TOL_DEG")
+            .ok()
+            .and_then(|s| s.parse::<f64>().ok())
+            .map(|t| (nalgebra::Vector3::z(), t.to_radians())),
+        min_extensions: std::env::var("MIN_EXT")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(vgps::matcher::DEFAULT_MIN_EXTENSIONS),
+        cell_size_m: std::env::var("CELL_M")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(vgps::matcher::DEFAULT_CELL_SIZE_M),
         ..MatchOptions::default()
     };
     let (mut right, mut wrong, mut ambiguous, mut none) = (0usize, 0usize, 0usize, 0usize);
