@@ -140,6 +140,8 @@ pub fn run(out: &mut dyn Write) -> Result<(), CliError> {
         observations_path: Path::new("<demo observations>"),
         rig: None,
         prior: None,
+        region: None,
+        up_tolerance_rad: None,
         sigma_rad: DEMO_SIGMA_DEG.to_radians(),
     };
     let reports = super::locate::locate(&input, &mut notes)?;
