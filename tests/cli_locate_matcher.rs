@@ -23,7 +23,12 @@ fn write_landmarks(path: &Path, points: &[Vector3<f64>]) {
     let mut text = "id,lat,lon,alt,sigma_m\n".to_string();
     for (k, p) in points.iter().enumerate() {
         let g = local().try_to_geodetic(p).unwrap();
-        writeln!(text, "L{k},{:.10},{:.10},{:.4},0.0", g.lat_deg, g.lon_deg, g.alt_m).unwrap();
+        writeln!(
+            text,
+            "L{k},{:.10},{:.10},{:.4},0.0",
+            g.lat_deg, g.lon_deg, g.alt_m
+        )
+        .unwrap();
     }
     std::fs::write(path, text).unwrap();
 }
@@ -43,7 +48,10 @@ fn rows(frame: u64, pose: &Pose, points: &[Vector3<f64>], stray: &[Vector3<f64>]
 
 fn prior_arg(p: &Vector3<f64>, radius: f64) -> String {
     let g = local().try_to_geodetic(p).unwrap();
-    format!("{:.10},{:.10},{:.3},{radius}", g.lat_deg, g.lon_deg, g.alt_m)
+    format!(
+        "{:.10},{:.10},{:.3},{radius}",
+        g.lat_deg, g.lon_deg, g.alt_m
+    )
 }
 
 fn run(landmarks: &Path, observations: &Path, extra: &[&str]) -> (Option<i32>, Vec<Value>) {
@@ -158,7 +166,11 @@ fn a_regular_street_is_ambiguous_with_a_cold_start_region() {
         .collect();
     let (l, o) = (dir.path().join("L.csv"), dir.path().join("O.csv"));
     write_landmarks(&l, &points);
-    std::fs::write(&o, format!("frame,bx,by,bz\n{}", rows(0, &truth, &visible, &[]))).unwrap();
+    std::fs::write(
+        &o,
+        format!("frame,bx,by,bz\n{}", rows(0, &truth, &visible, &[])),
+    )
+    .unwrap();
     let region = prior_arg(&Vector3::new(245.0, 0.0, 2.0), 30.0);
     let (code, lines) = run(&l, &o, &["--region", &region]);
     assert_eq!(code, Some(0));

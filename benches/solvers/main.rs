@@ -5,6 +5,7 @@ use criterion::{criterion_group, criterion_main};
 mod calibration;
 mod fix;
 mod geo;
+mod matcher;
 mod p3p;
 mod p3p_cosines;
 mod refine_pose;
@@ -16,6 +17,7 @@ criterion_group!(
     calibration::benches,
     fix::benches,
     geo::benches,
+    matcher::benches,
     p3p::benches,
     p3p_cosines::benches,
     refine_pose::benches,

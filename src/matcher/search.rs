@@ -52,7 +52,6 @@ struct CellData {
     tables: std::collections::HashMap<usize, Vec<u64>>,
 }
 
-
 fn bit_set(bits: &mut [u64], k: usize) {
     bits[k / 64] |= 1 << (k % 64);
 }
@@ -70,15 +69,19 @@ fn for_each_bit(bits: &[u64], mut f: impl FnMut(usize)) {
 
 /// Whether `x & y & z` (bitsets of equal length) has a bit outside `exclude`.
 fn meet_outside(x: &[u64], y: &[u64], z: &[u64], exclude: [usize; 3]) -> bool {
-    x.iter().zip(y).zip(z).enumerate().any(|(w, ((&p, &q), &r))| {
-        let mut v = p & q & r;
-        for e in exclude {
-            if e / 64 == w {
-                v &= !(1u64 << (e % 64));
+    x.iter()
+        .zip(y)
+        .zip(z)
+        .enumerate()
+        .any(|(w, ((&p, &q), &r))| {
+            let mut v = p & q & r;
+            for e in exclude {
+                if e / 64 == w {
+                    v &= !(1u64 << (e % 64));
+                }
             }
-        }
-        v != 0
-    })
+            v != 0
+        })
 }
 
 fn validate(detections: &[Detection], options: &MatchOptions) -> Result<(), MatchError> {
@@ -113,10 +116,7 @@ fn validate(detections: &[Detection], options: &MatchOptions) -> Result<(), Matc
 }
 
 /// Cell centres covering the area, and the cells' edges (metres per axis).
-fn cells(
-    area: &SearchArea,
-    size: f64,
-) -> Result<(Vec<Vector3<f64>>, Vector3<f64>), MatchError> {
+fn cells(area: &SearchArea, size: f64) -> Result<(Vec<Vector3<f64>>, Vector3<f64>), MatchError> {
     let extent = area.max_in_world - area.min_in_world;
     let counts: Vec<usize> = (0..3)
         .map(|k| ((extent[k] / size).ceil() as usize).max(1))
@@ -267,9 +267,8 @@ impl Search<'_> {
                     continue;
                 }
                 let l = &self.db.landmarks()[cands[m].index];
-                let v = pose.inverse_transform_vector(
-                    &(l.position_in_world - pose.translation.vector),
-                );
+                let v =
+                    pose.inverse_transform_vector(&(l.position_in_world - pose.translation.vector));
                 let r = v.norm();
                 // Survey error widens the threshold for near landmarks.
                 let cos_t = if l.sigma_m > 0.0 && r > 0.0 {
@@ -557,7 +556,11 @@ pub(super) fn run(
     let mut cell_data: Vec<CellData> = Vec::new();
     let area_centre = area.center();
     let mut centres = centres;
-    centres.sort_by(|x, y| (x - area_centre).norm().total_cmp(&(y - area_centre).norm()));
+    centres.sort_by(|x, y| {
+        (x - area_centre)
+            .norm()
+            .total_cmp(&(y - area_centre).norm())
+    });
     let half_horizontal = 0.5 * step.xy().norm();
     let half_vertical = 0.5 * step.z;
     for centre in &centres {
@@ -593,9 +596,8 @@ pub(super) fn run(
                         half_vertical,
                     );
                     let range = (l.position_in_world - centre).norm().max(radius);
-                    let margin = tol
-                        + search.noise
-                        + options.inlier_threshold_sigmas * l.sigma_m / range;
+                    let margin =
+                        tol + search.noise + options.inlier_threshold_sigmas * l.sigma_m / range;
                     if e < lo - margin || e > hi + margin {
                         continue;
                     }
@@ -778,12 +780,8 @@ pub(super) fn run(
                     // scoring to the end.
                     let best = search.kept.first().map_or(0, |h| h.inliers);
                     let needed = best.saturating_sub(options.ambiguity_margin + 1).max(4);
-                    let (inliers, cost, _) = search.score(
-                        &pose,
-                        &cell.indices,
-                        HYPOTHESIS_THRESHOLD_FACTOR,
-                        needed,
-                    );
+                    let (inliers, cost, _) =
+                        search.score(&pose, &cell.indices, HYPOTHESIS_THRESHOLD_FACTOR, needed);
                     if inliers >= options.min_inliers.min(4) {
                         search.keep(pose, inliers, cost, t);
                     }
