@@ -47,9 +47,31 @@ struct CellData {
     /// Per detection, the candidates it may be (class, and elevation when up is known):
     /// `n × words` bits.
     allowed: Vec<u64>,
-    /// Pair tables by ordered detection pair `a · n + b`: row `i` (`words` words) holds the
-    /// candidates `j` that detection `b` may be when detection `a` is candidate `i`.
-    tables: std::collections::HashMap<usize, Vec<u64>>,
+    /// Pair tables by ordered detection pair `a · n + b`: `slots[a · n + b]` is the table's
+    /// position in `store` (`NO_TABLE`: not built yet); row `i` of a table (`words` words)
+    /// holds the candidates `j` that detection `b` may be when detection `a` is candidate `i`.
+    slots: Vec<u32>,
+    /// The tables, each `m × words` words.
+    store: Vec<u64>,
+}
+
+/// A pair table not built yet.
+const NO_TABLE: u32 = u32::MAX;
+
+impl CellData {
+    /// Row `i` of the (built) table of the ordered detection pair `key`.
+    fn row(&self, key: usize, i: usize) -> &[u64] {
+        let size = self.cands.len() * self.words;
+        let start = self.slots[key] as usize * size + i * self.words;
+        &self.store[start..start + self.words]
+    }
+
+    /// The whole (built) table of the ordered detection pair `key`.
+    fn table(&self, key: usize) -> &[u64] {
+        let size = self.cands.len() * self.words;
+        let start = self.slots[key] as usize * size;
+        &self.store[start..start + size]
+    }
 }
 
 fn bit_set(bits: &mut [u64], k: usize) {
@@ -222,14 +244,17 @@ impl Search<'_> {
     fn ensure_table(&self, cell: &mut CellData, a: usize, b: usize) {
         let n = self.detections.len();
         let key = a * n + b;
-        if cell.tables.contains_key(&key) {
+        if cell.slots[key] != NO_TABLE {
             return;
         }
         let m = cell.cands.len();
         let words = cell.words;
         let theta = angle_between(&self.directions[a], &self.directions[b]);
         let tol = 2.0 * self.noise;
-        let mut table = vec![0u64; m * words];
+        let start = cell.store.len();
+        cell.slots[key] = (start / (m * words)) as u32;
+        cell.store.resize(start + m * words, 0);
+        let table = &mut cell.store[start..];
         let allowed_a = &cell.allowed[a * words..(a + 1) * words];
         let allowed_b = &cell.allowed[b * words..(b + 1) * words];
         for_each_bit(allowed_a, |i| {
@@ -242,7 +267,6 @@ impl Search<'_> {
                 }
             });
         });
-        cell.tables.insert(key, table);
     }
 
     /// Whether detection `d`, under `pose`, is within the hypothesis threshold of one of the
@@ -579,28 +603,31 @@ pub(super) fn run(
         }
         let words = m.div_ceil(64);
         let mut allowed = vec![0u64; n * words];
+        // Per candidate: its elevation range over the cell, widened by the tilt tolerance,
+        // the bearing noise and the survey error.
+        let gates: Vec<Option<(f64, f64)>> = cands
+            .iter()
+            .map(|cand| {
+                let (_, tol) = up?;
+                let l = &db.landmarks()[cand.index];
+                let v = l.position_in_world - centre;
+                let (lo, hi) = elevation_range(&v, half_horizontal, half_vertical);
+                let margin = tol
+                    + search.noise
+                    + options.inlier_threshold_sigmas * l.sigma_m / v.norm().max(radius);
+                Some((lo - margin, hi + margin))
+            })
+            .collect();
         for d in 0..n {
-            let elevation = up.map(|(u, tol)| {
-                let e = search.directions[d].dot(&u).clamp(-1.0, 1.0).asin();
-                (e, tol)
-            });
+            let elevation = up.map(|(u, _)| search.directions[d].dot(&u).clamp(-1.0, 1.0).asin());
             for (i, cand) in cands.iter().enumerate() {
                 if !search.compatible(d, cand.index) {
                     continue;
                 }
-                if let Some((e, tol)) = elevation {
-                    let l = &db.landmarks()[cand.index];
-                    let (lo, hi) = elevation_range(
-                        &(l.position_in_world - centre),
-                        half_horizontal,
-                        half_vertical,
-                    );
-                    let range = (l.position_in_world - centre).norm().max(radius);
-                    let margin =
-                        tol + search.noise + options.inlier_threshold_sigmas * l.sigma_m / range;
-                    if e < lo - margin || e > hi + margin {
-                        continue;
-                    }
+                if let (Some(e), Some((lo, hi))) = (elevation, gates[i])
+                    && (e < lo || e > hi)
+                {
+                    continue;
                 }
                 bit_set(&mut allowed[d * words..(d + 1) * words], i);
             }
@@ -613,7 +640,8 @@ pub(super) fn run(
             indices,
             words,
             allowed,
-            tables: std::collections::HashMap::new(),
+            slots: vec![NO_TABLE; n * n],
+            store: Vec::new(),
         });
     }
     if cell_data.is_empty() {
@@ -669,9 +697,9 @@ pub(super) fn run(
             // Landmark triples (i, j, k) that pass the three pair tables.
             survivors.clear();
             {
-                let ab = &cell.tables[&(a * n + b)];
-                let ac = &cell.tables[&(a * n + c)];
-                let bc = &cell.tables[&(b * n + c)];
+                let ab = cell.table(a * n + b);
+                let ac = cell.table(a * n + c);
+                let bc = cell.table(b * n + c);
                 for i in 0..cell.cands.len() {
                     let ab_i = &ab[i * words..(i + 1) * words];
                     let ac_i = &ac[i * words..(i + 1) * words];
@@ -705,9 +733,7 @@ pub(super) fn run(
                     }
                 }
                 let cell_ref = &*cell;
-                let row = |p: usize, l: usize, i: usize| {
-                    &cell_ref.tables[&(p * n + l)][i * words..(i + 1) * words]
-                };
+                let row = |p: usize, l: usize, i: usize| cell_ref.row(p * n + l, i);
                 survivors.retain(|&[i, j, k]| {
                     let mut found = 0;
                     for &l in &extensions {
@@ -722,7 +748,6 @@ pub(super) fn run(
                 });
             }
             let cell = &*cell;
-            let words = cell.words;
             for &[i, j, k] in &survivors {
                 let cands = &cell.cands;
                 let centre = &cell.centre;
@@ -760,9 +785,9 @@ pub(super) fn run(
                         let mut verified = 0;
                         for &l in &extensions {
                             let rows = [
-                                &cell.tables[&(a * n + l)][i * words..(i + 1) * words],
-                                &cell.tables[&(b * n + l)][j * words..(j + 1) * words],
-                                &cell.tables[&(c * n + l)][k * words..(k + 1) * words],
+                                cell.row(a * n + l, i),
+                                cell.row(b * n + l, j),
+                                cell.row(c * n + l, k),
                             ];
                             if search.sees_one_of(&pose, l, &rows, [i, j, k], cands) {
                                 verified += 1;
