@@ -674,6 +674,7 @@ pub(super) fn run(
 
     let position_margin = options.visibility_range_m * 2.0 * search.noise;
     let mut survivors: Vec<[usize; 3]> = Vec::new();
+
     'triples: for (t, &[a, b, c]) in triples.iter().enumerate() {
         let bearings = [
             search.directions[a],
