@@ -904,3 +904,48 @@ pub(super) fn run(
     });
     Ok(result)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::RngExt;
+
+    #[test]
+    fn elevation_range_bounds_every_point_of_the_cylinder() {
+        let mut r = crate::synthetic::rng(4);
+        for _ in 0..200 {
+            let v = Vector3::new(
+                r.random_range(-60.0..60.0),
+                r.random_range(-60.0..60.0),
+                r.random_range(-5.0..20.0),
+            );
+            let (hh, hz) = (r.random_range(0.5..10.0), r.random_range(0.0..2.0));
+            let (lo, hi) = elevation_range(&v, hh, hz);
+            assert!(lo <= hi);
+            for _ in 0..50 {
+                let a = r.random_range(0.0..std::f64::consts::TAU);
+                let rho = hh * r.random_range(0.0..1.0f64).sqrt();
+                let x = Vector3::new(rho * a.cos(), rho * a.sin(), r.random_range(-hz..=hz));
+                let w = v - x;
+                let e = w.z.atan2(w.xy().norm());
+                assert!(
+                    e >= lo - 1e-12 && e <= hi + 1e-12,
+                    "{e} not in [{lo}, {hi}]"
+                );
+            }
+            // Tight: the centre's own elevation is inside, and the corners are reached.
+            let e0 = v.z.atan2(v.xy().norm());
+            assert!(lo <= e0 && e0 <= hi);
+        }
+    }
+
+    #[test]
+    fn meet_outside_ignores_the_excluded_bits() {
+        let x = [0b1011u64, 1 << 3];
+        let y = [0b0011u64, 1 << 3];
+        let z = [0b0111u64, u64::MAX];
+        assert!(meet_outside(&x, &y, &z, [5, 6, 7]));
+        assert!(!meet_outside(&x, &y, &z, [0, 1, 67]));
+        assert!(meet_outside(&x, &y, &z, [0, 9, 9]));
+    }
+}
