@@ -162,22 +162,32 @@ fn cells(area: &SearchArea, size: f64) -> Result<(Vec<Vector3<f64>>, Vector3<f64
     Ok((centres, step))
 }
 
-/// Up to `max` detections, greedily spread over the sphere (farthest-point order).
-fn core_detections(directions: &[Vector3<f64>], max: usize) -> Vec<usize> {
-    let n = directions.len();
-    if n <= max {
-        return (0..n).collect();
+/// Up to `max` of the usable detections, greedily spread over the sphere (farthest-point
+/// order). A detection is unusable when no candidate of any cell may be it (class, or
+/// elevation when the vertical is known): e.g. a stray light below the horizon.
+fn core_detections(directions: &[Vector3<f64>], usable: &[bool], max: usize) -> Vec<usize> {
+    let candidates: Vec<usize> = (0..directions.len()).filter(|&k| usable[k]).collect();
+    if candidates.len() <= max {
+        return candidates;
     }
-    let mut chosen = vec![0usize];
+    let first = candidates[0];
+    let mut chosen = vec![first];
     let mut nearest: Vec<f64> = directions
         .iter()
-        .map(|d| angle_between(d, &directions[0]))
+        .enumerate()
+        .map(|(k, d)| {
+            if usable[k] {
+                angle_between(d, &directions[first])
+            } else {
+                f64::NEG_INFINITY
+            }
+        })
         .collect();
     while chosen.len() < max {
         let (next, _) = nearest
             .iter()
             .enumerate()
-            .fold((0, -1.0), |b, (k, &a)| if a > b.1 { (k, a) } else { b });
+            .fold((first, 0.0), |b, (k, &a)| if a > b.1 { (k, a) } else { b });
         chosen.push(next);
         for (k, d) in directions.iter().enumerate() {
             nearest[k] = nearest[k].min(angle_between(d, &directions[next]));
@@ -653,7 +663,16 @@ pub(super) fn run(
     }
 
     // Detection triples from the core detections, in a fixed pseudo-random order.
-    let core = core_detections(&search.directions, options.max_core_detections);
+    let usable: Vec<bool> = (0..n)
+        .map(|d| {
+            cell_data.iter().any(|cell| {
+                cell.allowed[d * cell.words..(d + 1) * cell.words]
+                    .iter()
+                    .any(|&w| w != 0)
+            })
+        })
+        .collect();
+    let core = core_detections(&search.directions, &usable, options.max_core_detections);
     let mut triples = Vec::new();
     for x in 0..core.len() {
         for y in x + 1..core.len() {
