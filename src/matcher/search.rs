@@ -5,7 +5,8 @@ use super::{
     DISTINCT_POSITION_M, DISTINCT_ROTATION_RAD, DUPLICATE_ANGLE_RAD, Detection,
     HYPOTHESIS_THRESHOLD_FACTOR, LandmarkDb, MAX_CELLS, MAX_KEPT_HYPOTHESES,
     MAX_RUNNER_UP_REFINEMENTS, MIN_TRIPLE_ANGLE_RAD, MatchError, MatchEstimate, MatchOptions,
-    MatchResult, MatchStatus, REFINE_PASSES, STOP_CONFIRMATIONS, SearchArea, UP_CHECK_MARGIN_RAD,
+    MatchResult, MatchStatus, REFINE_PASSES, STOP_CONFIRMATIONS, STOP_MIN_INLIER_FRACTION,
+    SearchArea, UP_CHECK_MARGIN_RAD,
 };
 use crate::geometry::{Pose, Ray, angle_between, try_unit};
 use crate::solvers::p3p;
@@ -673,6 +674,7 @@ pub(super) fn run(
         })
         .collect();
     let core = core_detections(&search.directions, &usable, options.max_core_detections);
+    let n_usable = usable.iter().filter(|&&u| u).count();
     let mut triples = Vec::new();
     for x in 0..core.len() {
         for y in x + 1..core.len() {
@@ -836,9 +838,17 @@ pub(super) fn run(
                 }
             }
         }
-        if search.kept.first().is_some_and(|h| {
-            h.confirmations >= STOP_CONFIRMATIONS && h.inliers >= options.min_inliers
-        }) {
+        // Early stop only for a best that explains at least half the usable detections: a
+        // wrong pose on a repetitive layout can be confirmed twice while the true one (with
+        // more inliers) has not been generated yet.
+        let enough = options
+            .min_inliers
+            .max((STOP_MIN_INLIER_FRACTION * n_usable as f64).ceil() as usize);
+        if search
+            .kept
+            .first()
+            .is_some_and(|h| h.confirmations >= STOP_CONFIRMATIONS && h.inliers >= enough)
+        {
             break;
         }
     }
