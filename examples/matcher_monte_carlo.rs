@@ -2,6 +2,9 @@
 //! fixes (status ok but > 5 m off), ambiguous / no-fix frames and the time per frame.
 //!
 //! Run: `cargo run --release --example matcher_monte_carlo -- [prior|cold] [FRAMES] [SEED]`
+//!
+//! Environment: `UP_TOL_DEG=4` (known vertical to 4°), `CELL_M`, `MIN_EXT`, `TRUE_DET`,
+//! `FALSE_DET`, `SPARSE=1` (the 1,060-landmark city with a prior), `VERBOSE=1`.
 use std::time::Instant;
 use vgps::geometry::Ray;
 use vgps::matcher::{
@@ -20,7 +23,8 @@ fn main() {
     let seed: u64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(1);
     let cold = mode == "cold";
     let mut r = rng(seed);
-    let config = if cold {
+    // SPARSE=1: the 1,060-landmark city also with a prior.
+    let config = if cold || std::env::var("SPARSE").is_ok() {
         CityConfig::sparse()
     } else {
         CityConfig::default()
@@ -40,9 +44,33 @@ fn main() {
             .collect(),
     )
     .expect("valid landmarks");
-    let frame_config = FrameConfig::default();
+    // TRUE_DET / FALSE_DET: detections of landmarks / false detections per frame.
+    let env_usize = |name: &str, default: usize| {
+        std::env::var(name)
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(default)
+    };
+    let frame_config = FrameConfig {
+        true_detections: env_usize("TRUE_DET", FrameConfig::default().true_detections),
+        false_detections: env_usize("FALSE_DET", FrameConfig::default().false_detections),
+        ..FrameConfig::default()
+    };
     let options = MatchOptions {
         sigma_rad: frame_config.sigma_rad,
+        // UP_TOL_DEG=4: the vertical is known to 4° (the rig tilts by up to 3°).
+        up_in_rig: std::env::var("UP_TOL_DEG")
+            .ok()
+            .and_then(|s| s.parse::<f64>().ok())
+            .map(|t| (nalgebra::Vector3::z(), t.to_radians())),
+        min_extensions: std::env::var("MIN_EXT")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(vgps::matcher::DEFAULT_MIN_EXTENSIONS),
+        cell_size_m: std::env::var("CELL_M")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(vgps::matcher::DEFAULT_CELL_SIZE_M),
         ..MatchOptions::default()
     };
     let (mut right, mut wrong, mut ambiguous, mut none) = (0usize, 0usize, 0usize, 0usize);

@@ -8,6 +8,7 @@ mod geo;
 mod imaging;
 mod localizer;
 mod mapping;
+mod matcher;
 mod p3p;
 mod p3p_cosines;
 mod refine_pose;
@@ -23,6 +24,7 @@ criterion_group!(
     imaging::benches,
     localizer::benches,
     mapping::benches,
+    matcher::benches,
     p3p::benches,
     p3p_cosines::benches,
     refine_pose::benches,

@@ -62,6 +62,14 @@ pub struct LocateArgs {
     /// Position prior: latitude and longitude (degrees), height (m), radius (m).
     #[arg(long, value_name = "LAT,LON,ALT,RADIUS_M", value_parser = parse_prior, allow_hyphen_values = true)]
     pub prior: Option<PriorArg>,
+    /// Cold-start search region for frames without landmark ids (when there is no
+    /// `--prior`): the rig is within RADIUS_M (horizontally) of LAT,LON and near height ALT.
+    #[arg(long, value_name = "LAT,LON,ALT,RADIUS_M", value_parser = parse_prior, allow_hyphen_values = true)]
+    pub region: Option<PriorArg>,
+    /// Known vertical for the matcher: the rig's +z axis is within this many degrees of
+    /// up (a level vehicle, or an IMU-levelled rig). Much faster matching.
+    #[arg(long, value_name = "DEG", value_parser = parse_non_negative)]
+    pub up_tolerance_deg: Option<f64>,
     /// Bearing standard deviation per tangent axis, degrees.
     #[arg(long, value_name = "S", default_value_t = DEFAULT_SIGMA_DEG, value_parser = parse_positive)]
     pub sigma_deg: f64,
@@ -147,6 +155,10 @@ pub struct LocateSettings {
     pub calibration: Option<PathBuf>,
     /// The position prior, if any.
     pub prior: Option<PriorArg>,
+    /// The matcher's cold-start region, if any.
+    pub region: Option<PriorArg>,
+    /// The matcher's known-vertical tolerance, radians, if any.
+    pub up_tolerance_rad: Option<f64>,
     /// Bearing standard deviation per tangent axis, radians.
     pub sigma_rad: f64,
 }
@@ -191,6 +203,8 @@ impl TryFrom<Cli> for Settings {
                 observations: a.observations,
                 calibration: a.calibration,
                 prior: a.prior,
+                region: a.region,
+                up_tolerance_rad: a.up_tolerance_deg.map(f64::to_radians),
                 sigma_rad: a.sigma_deg.to_radians(),
             }),
             Command::Triangulate(a) => Settings::Triangulate(TriangulateSettings {

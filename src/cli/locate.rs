@@ -7,14 +7,26 @@ use crate::fix::{Fix, FixOptions, FixStatus, Prior, compute_fix};
 use crate::geo::{Geodetic, LocalFrame};
 use crate::geometry::Ray;
 use crate::io::{InputError, Landmark, Measurement, Observation};
+use crate::matcher::{
+    DbLandmark, Detection, LandmarkDb, MatchError, MatchOptions, MatchStatus, SearchArea,
+    match_detections,
+};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
 use std::io::Write;
 use std::path::Path;
 
-/// Status of a frame whose observations carry no landmark ids.
+/// Status of a frame whose observations carry no landmark ids when neither `--prior` nor
+/// `--region` says where to search.
 pub const STATUS_NEEDS_MATCHER: &str = "needs_matcher";
+
+/// Status of a frame whose matcher search region needs too many cells.
+pub const STATUS_REGION_TOO_LARGE: &str = "region_too_large";
+
+/// The matcher searches the rig height within ± this of the prior's (or region's) height,
+/// metres.
+pub const MATCH_VERTICAL_HALF_RANGE_M: f64 = 1.0;
 
 /// The result for one frame: one JSON object of the output.
 ///
@@ -52,8 +64,14 @@ pub struct FrameReport {
     pub observations: usize,
     /// Number of observations used (inliers).
     pub inliers: Option<usize>,
-    /// Per observation row of the frame, in input order: the landmark id used, or `null`.
+    /// Per observation row of the frame, in input order: the landmark id used, or `null`
+    /// (for a matched frame: the landmark the matcher assigned to the detection).
     pub landmarks: Vec<Option<String>>,
+    /// Matched frames (rows without landmark ids): inliers of the best pose hypothesis.
+    pub best_score: Option<usize>,
+    /// Matched frames: inliers of the best hypothesis distinct from the best (`null` when
+    /// there was none, and for frames with landmark ids).
+    pub runner_up_score: Option<usize>,
 }
 
 impl FrameReport {
@@ -75,6 +93,8 @@ impl FrameReport {
             observations,
             inliers: None,
             landmarks: vec![None; observations],
+            best_score: None,
+            runner_up_score: None,
         }
     }
 }
@@ -106,6 +126,8 @@ pub fn run(
         observations_path: &settings.observations,
         rig: rig.as_ref(),
         prior: settings.prior.as_ref(),
+        region: settings.region.as_ref(),
+        up_tolerance_rad: settings.up_tolerance_rad,
         sigma_rad: settings.sigma_rad,
     };
     let reports = locate(&input, &mut notes)?;
@@ -135,6 +157,10 @@ pub struct LocateInput<'a> {
     pub rig: Option<&'a Rig>,
     /// The position prior, if any.
     pub prior: Option<&'a PriorArg>,
+    /// The matcher's cold-start region (used when there is no prior), if any.
+    pub region: Option<&'a PriorArg>,
+    /// The matcher's known-vertical tolerance (the rig's +z is within it of up), radians.
+    pub up_tolerance_rad: Option<f64>,
     /// Bearing standard deviation per tangent axis, radians.
     pub sigma_rad: f64,
 }
@@ -161,6 +187,8 @@ pub fn locate(
         observations_path,
         rig,
         prior,
+        region,
+        up_tolerance_rad,
         sigma_rad,
     } = *input;
     let mut geodetic: HashMap<&str, (Geodetic, f64)> = HashMap::new();
@@ -171,6 +199,7 @@ pub fn locate(
     }
     // Per observation: its ray and its landmark (`None`: no landmark id).
     let mut resolved: Vec<Option<(Ray, Geodetic, f64)>> = Vec::with_capacity(observations.len());
+    let mut rays: Vec<Ray> = Vec::with_capacity(observations.len());
     for o in observations {
         let ray = match (&o.measurement, rig) {
             (Measurement::Bearing(b), _) => {
@@ -201,6 +230,7 @@ pub fn locate(
                 })?
             }
         };
+        rays.push(ray);
         let Some(id) = &o.landmark else {
             resolved.push(None);
             continue;
@@ -219,7 +249,8 @@ pub fn locate(
         };
         resolved.push(Some((ray, *g, *sigma_m)));
     }
-    let origin = match prior {
+    let search_around = prior.or(region);
+    let origin = match search_around {
         Some(p) => Some(p.position),
         None => centroid(geodetic.values().map(|(g, _)| g)),
     };
@@ -241,15 +272,38 @@ pub fn locate(
         frames.entry(o.frame).or_default().push(k);
     }
     let mut reports = Vec::with_capacity(frames.len());
+    let mut matcher_db: Option<LandmarkDb> = None;
     for (number, indices) in frames {
         let rows: Vec<&Observation> = indices.iter().map(|&k| &observations[k]).collect();
         let identified: Option<Vec<(Ray, Geodetic, f64)>> =
             indices.iter().map(|&k| resolved[k]).collect();
         let (Some(identified), Some(local)) = (identified, frame.as_ref()) else {
+            if let (Some(around), Some(local)) = (search_around, frame.as_ref()) {
+                let db = match &matcher_db {
+                    Some(db) => db,
+                    None => matcher_db.insert(landmark_db(landmarks, &geodetic, local)?),
+                };
+                let frame_rays: Vec<Ray> = indices.iter().map(|&k| rays[k]).collect();
+                let options = MatchOptions {
+                    sigma_rad,
+                    up_in_rig: up_tolerance_rad.map(|t| (Vector3::z(), t)),
+                    ..MatchOptions::default()
+                };
+                reports.push(matched_report(
+                    number,
+                    db,
+                    &frame_rays,
+                    &local.to_enu(&around.position),
+                    around.radius_m,
+                    &options,
+                    local,
+                )?);
+                continue;
+            }
             let unidentified = indices.iter().filter(|&&k| resolved[k].is_none()).count();
             let message = format!(
-                "{unidentified} of {} observations have no landmark id; identifying landmarks \
-                 without ids arrives with the matcher issue",
+                "{unidentified} of {} observations have no landmark id; give --prior or \
+                 --region to identify them with the landmark matcher",
                 rows.len()
             );
             notes.push(format!("frame {number}: {message}"));
@@ -261,11 +315,11 @@ pub fn locate(
             ));
             continue;
         };
-        let rays: Vec<Ray> = identified.iter().map(|(r, _, _)| *r).collect();
+        let id_rays: Vec<Ray> = identified.iter().map(|(r, _, _)| *r).collect();
         let points: Vec<Vector3<f64>> =
             identified.iter().map(|(_, g, _)| local.to_enu(g)).collect();
         let sigmas: Vec<f64> = identified.iter().map(|(_, _, s)| *s).collect();
-        let fix = compute_fix(&rays, &points, &sigmas, &fix_options)
+        let fix = compute_fix(&id_rays, &points, &sigmas, &fix_options)
             .map_err(|e| CliError::Internal(format!("frame {number}: invalid fix problem: {e}")))?;
         reports.push(report(number, &rows, &fix, local));
     }
@@ -294,7 +348,34 @@ fn report(number: u64, rows: &[&Observation], fix: &Fix, local: &LocalFrame) -> 
     else {
         return FrameReport::without_fix(number, fix.status.as_str(), fix.message.clone(), n);
     };
-    let position = estimate.world_from_rig.translation.vector;
+    let landmarks = rows
+        .iter()
+        .zip(&fix.inliers)
+        .map(|(o, &used)| if used { o.landmark.clone() } else { None })
+        .collect();
+    fix_report(
+        number,
+        local,
+        &estimate.world_from_rig,
+        &estimate.covariance,
+        estimate.rms_residual_rad,
+        estimate.n_inliers,
+        landmarks,
+    )
+}
+
+/// The output record of a pose (in the local frame) with its covariance.
+fn fix_report(
+    number: u64,
+    local: &LocalFrame,
+    world_from_rig: &crate::geometry::Pose,
+    covariance: &nalgebra::Matrix6<f64>,
+    rms_residual_rad: f64,
+    inliers: usize,
+    landmarks: Vec<Option<String>>,
+) -> FrameReport {
+    let n = landmarks.len();
+    let position = world_from_rig.translation.vector;
     let Ok(here) = local.try_to_geodetic(&position) else {
         return FrameReport::without_fix(
             number,
@@ -306,11 +387,11 @@ fn report(number: u64, rows: &[&Observation], fix: &Fix, local: &LocalFrame) -> 
     // Rotate from ENU at the local origin into ENU at the rig.
     let enu_here_from_enu_origin = local.enu_here_from_enu_at(&here).inverse();
     let r: Matrix3<f64> = *enu_here_from_enu_origin.matrix();
-    let enu_from_rig = enu_here_from_enu_origin * estimate.world_from_rig.rotation;
+    let enu_from_rig = enu_here_from_enu_origin * world_from_rig.rotation;
     let q = UnitQuaternion::from_rotation_matrix(&enu_from_rig);
     let sign = if q.w < 0.0 { -1.0 } else { 1.0 };
     let hpr = HeadingPitchRoll::from_enu_from_rig(&enu_from_rig);
-    let c = &estimate.covariance;
+    let c = covariance;
     let cov_p = r * c.fixed_view::<3, 3>(0, 0) * r.transpose();
     let cov_a = r * c.fixed_view::<3, 3>(3, 3) * r.transpose();
     let row_major = |m: &Matrix3<f64>| std::array::from_fn(|k| m[(k / 3, k % 3)]);
@@ -327,13 +408,87 @@ fn report(number: u64, rows: &[&Observation], fix: &Fix, local: &LocalFrame) -> 
         roll_deg: Some(hpr.roll_rad.to_degrees()),
         cov_enu_m2: Some(row_major(&cov_p)),
         cov_att_enu_rad2: Some(row_major(&cov_a)),
-        rms_residual_deg: Some(estimate.rms_residual_rad.to_degrees()),
+        rms_residual_deg: Some(rms_residual_rad.to_degrees()),
         observations: n,
-        inliers: Some(estimate.n_inliers),
-        landmarks: rows
-            .iter()
-            .zip(&fix.inliers)
-            .map(|(o, &used)| if used { o.landmark.clone() } else { None })
-            .collect(),
+        inliers: Some(inliers),
+        landmarks,
+        best_score: None,
+        runner_up_score: None,
     }
+}
+
+/// The matcher's database: every landmark of the file in the local frame, in file order.
+fn landmark_db(
+    landmarks: &[Landmark],
+    geodetic: &HashMap<&str, (Geodetic, f64)>,
+    local: &LocalFrame,
+) -> Result<LandmarkDb, CliError> {
+    let entries = landmarks
+        .iter()
+        .filter_map(|l| {
+            let (g, sigma_m) = geodetic.get(l.id.as_str())?;
+            Some(DbLandmark {
+                id: l.id.clone(),
+                position_in_world: local.to_enu(g),
+                class: None,
+                sigma_m: *sigma_m,
+            })
+        })
+        .collect();
+    LandmarkDb::new(entries).map_err(|e| CliError::Internal(format!("landmark database: {e}")))
+}
+
+/// Matches one frame's rays (no landmark ids) against the database, around `centre` (local
+/// frame) within `radius_m` horizontally.
+fn matched_report(
+    number: u64,
+    db: &LandmarkDb,
+    rays: &[Ray],
+    centre: &Vector3<f64>,
+    radius_m: f64,
+    options: &MatchOptions,
+    local: &LocalFrame,
+) -> Result<FrameReport, CliError> {
+    let n = rays.len();
+    let detections: Vec<Detection> = rays.iter().map(|r| Detection::new(*r)).collect();
+    let area = SearchArea::around(centre, radius_m, MATCH_VERTICAL_HALF_RANGE_M)
+        .ok_or_else(|| CliError::Internal(format!("frame {number}: invalid search area")))?;
+    let result = match match_detections(db, &detections, &area, options) {
+        Ok(r) => r,
+        Err(MatchError::AreaTooLarge(cells)) => {
+            return Ok(FrameReport::without_fix(
+                number,
+                STATUS_REGION_TOO_LARGE,
+                format!("the search region needs {cells} cells: give a smaller radius"),
+                n,
+            ));
+        }
+        Err(e) => return Err(CliError::Internal(format!("frame {number}: {e}"))),
+    };
+    let mut report = match (&result.estimate, result.status) {
+        (Some(e), MatchStatus::Ok) => {
+            let ids = result
+                .assignment
+                .iter()
+                .map(|a| a.and_then(|k| db.get(k)).map(|l| l.id.clone()))
+                .collect();
+            let mut r = fix_report(
+                number,
+                local,
+                &e.world_from_rig,
+                &e.covariance,
+                e.rms_residual_rad,
+                result.best_score,
+                ids,
+            );
+            if r.status != MatchStatus::Ok.as_str() {
+                r.status = MatchStatus::NoMatch.as_str().to_string();
+            }
+            r
+        }
+        _ => FrameReport::without_fix(number, result.status.as_str(), result.message.clone(), n),
+    };
+    report.best_score = Some(result.best_score);
+    report.runner_up_score = result.runner_up_score;
+    Ok(report)
 }

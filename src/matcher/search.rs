@@ -5,7 +5,8 @@ use super::{
     DISTINCT_POSITION_M, DISTINCT_ROTATION_RAD, DUPLICATE_ANGLE_RAD, Detection,
     HYPOTHESIS_THRESHOLD_FACTOR, LandmarkDb, MAX_CELLS, MAX_KEPT_HYPOTHESES,
     MAX_RUNNER_UP_REFINEMENTS, MIN_TRIPLE_ANGLE_RAD, MatchError, MatchEstimate, MatchOptions,
-    MatchResult, MatchStatus, REFINE_PASSES, STOP_CONFIRMATIONS, SearchArea,
+    MatchResult, MatchStatus, REFINE_PASSES, STOP_CONFIRMATIONS, STOP_MIN_INLIER_FRACTION,
+    SearchArea, UP_CHECK_MARGIN_RAD,
 };
 use crate::geometry::{Pose, Ray, angle_between, try_unit};
 use crate::solvers::p3p;
@@ -34,14 +35,76 @@ struct Hypothesis {
 /// A refined hypothesis: pose, covariance, RMS residual (rad), inliers, assignment.
 type Refined = (Pose, Matrix6<f64>, f64, usize, Vec<Option<usize>>);
 
-/// A cell: centre, candidates, pairwise candidate angles (row-major), candidate indices.
-type Cell = (Vector3<f64>, Vec<Candidate>, Vec<f64>, Vec<usize>);
+/// A search cell: its candidates seen from the centre and its lazily built pair tables.
+struct CellData {
+    centre: Vector3<f64>,
+    cands: Vec<Candidate>,
+    /// Pairwise candidate angles seen from the centre (row-major `m × m`).
+    angles: Vec<f64>,
+    /// Database indices of the candidates.
+    indices: Vec<usize>,
+    /// 64-bit words per candidate bitset.
+    words: usize,
+    /// Per detection, the candidates it may be (class, and elevation when up is known):
+    /// `n × words` bits.
+    allowed: Vec<u64>,
+    /// Pair tables by ordered detection pair `a · n + b`: `slots[a · n + b]` is the table's
+    /// position in `store` (`NO_TABLE`: not built yet); row `i` of a table (`words` words)
+    /// holds the candidates `j` that detection `b` may be when detection `a` is candidate `i`.
+    slots: Vec<u32>,
+    /// The tables, each `m × words` words.
+    store: Vec<u64>,
+}
 
-/// A bitset of landmarks of a cell.
-type Bits = Vec<u64>;
+/// A pair table not built yet.
+const NO_TABLE: u32 = u32::MAX;
+
+impl CellData {
+    /// Row `i` of the (built) table of the ordered detection pair `key`.
+    fn row(&self, key: usize, i: usize) -> &[u64] {
+        let size = self.cands.len() * self.words;
+        let start = self.slots[key] as usize * size + i * self.words;
+        &self.store[start..start + self.words]
+    }
+
+    /// The whole (built) table of the ordered detection pair `key`.
+    fn table(&self, key: usize) -> &[u64] {
+        let size = self.cands.len() * self.words;
+        let start = self.slots[key] as usize * size;
+        &self.store[start..start + size]
+    }
+}
 
 fn bit_set(bits: &mut [u64], k: usize) {
     bits[k / 64] |= 1 << (k % 64);
+}
+
+/// Calls `f` with the index of every set bit, in increasing order.
+fn for_each_bit(bits: &[u64], mut f: impl FnMut(usize)) {
+    for (w, &word) in bits.iter().enumerate() {
+        let mut rest = word;
+        while rest != 0 {
+            f(w * 64 + rest.trailing_zeros() as usize);
+            rest &= rest - 1;
+        }
+    }
+}
+
+/// Whether `x & y & z` (bitsets of equal length) has a bit outside `exclude`.
+fn meet_outside(x: &[u64], y: &[u64], z: &[u64], exclude: [usize; 3]) -> bool {
+    x.iter()
+        .zip(y)
+        .zip(z)
+        .enumerate()
+        .any(|(w, ((&p, &q), &r))| {
+            let mut v = p & q & r;
+            for e in exclude {
+                if e / 64 == w {
+                    v &= !(1u64 << (e % 64));
+                }
+            }
+            v != 0
+        })
 }
 
 fn validate(detections: &[Detection], options: &MatchOptions) -> Result<(), MatchError> {
@@ -75,8 +138,8 @@ fn validate(detections: &[Detection], options: &MatchOptions) -> Result<(), Matc
     Ok(())
 }
 
-/// Cell centres covering the area, and the cells' radius (half-diagonal).
-fn cells(area: &SearchArea, size: f64) -> Result<(Vec<Vector3<f64>>, f64), MatchError> {
+/// Cell centres covering the area, and the cells' edges (metres per axis).
+fn cells(area: &SearchArea, size: f64) -> Result<(Vec<Vector3<f64>>, Vector3<f64>), MatchError> {
     let extent = area.max_in_world - area.min_in_world;
     let counts: Vec<usize> = (0..3)
         .map(|k| ((extent[k] / size).ceil() as usize).max(1))
@@ -97,25 +160,35 @@ fn cells(area: &SearchArea, size: f64) -> Result<(Vec<Vector3<f64>>, f64), Match
             }
         }
     }
-    Ok((centres, 0.5 * step.norm()))
+    Ok((centres, step))
 }
 
-/// Up to `max` detections, greedily spread over the sphere (farthest-point order).
-fn core_detections(directions: &[Vector3<f64>], max: usize) -> Vec<usize> {
-    let n = directions.len();
-    if n <= max {
-        return (0..n).collect();
+/// Up to `max` of the usable detections, greedily spread over the sphere (farthest-point
+/// order). A detection is unusable when no candidate of any cell may be it (class, or
+/// elevation when the vertical is known): e.g. a stray light below the horizon.
+fn core_detections(directions: &[Vector3<f64>], usable: &[bool], max: usize) -> Vec<usize> {
+    let candidates: Vec<usize> = (0..directions.len()).filter(|&k| usable[k]).collect();
+    if candidates.len() <= max {
+        return candidates;
     }
-    let mut chosen = vec![0usize];
+    let first = candidates[0];
+    let mut chosen = vec![first];
     let mut nearest: Vec<f64> = directions
         .iter()
-        .map(|d| angle_between(d, &directions[0]))
+        .enumerate()
+        .map(|(k, d)| {
+            if usable[k] {
+                angle_between(d, &directions[first])
+            } else {
+                f64::NEG_INFINITY
+            }
+        })
         .collect();
     while chosen.len() < max {
         let (next, _) = nearest
             .iter()
             .enumerate()
-            .fold((0, -1.0), |b, (k, &a)| if a > b.1 { (k, a) } else { b });
+            .fold((first, 0.0), |b, (k, &a)| if a > b.1 { (k, a) } else { b });
         chosen.push(next);
         for (k, d) in directions.iter().enumerate() {
             nearest[k] = nearest[k].min(angle_between(d, &directions[next]));
@@ -178,34 +251,78 @@ impl Search<'_> {
             .collect()
     }
 
-    /// Pair table of the detection pair (a, b) in a cell: per landmark i, the bitset of j.
-    fn pair_table(
-        &self,
-        cands: &[Candidate],
-        angles: &[f64],
-        a: usize,
-        b: usize,
-        words: usize,
-    ) -> Vec<Bits> {
-        let n = cands.len();
+    /// Builds the pair table of the ordered detection pair `(a, b)` in a cell (once).
+    fn ensure_table(&self, cell: &mut CellData, a: usize, b: usize) {
+        let n = self.detections.len();
+        let key = a * n + b;
+        if cell.slots[key] != NO_TABLE {
+            return;
+        }
+        let m = cell.cands.len();
+        let words = cell.words;
         let theta = angle_between(&self.directions[a], &self.directions[b]);
         let tol = 2.0 * self.noise;
-        let mut table = vec![vec![0u64; words]; n];
-        for i in 0..n {
-            if !self.compatible(a, cands[i].index) {
-                continue;
-            }
-            for j in 0..n {
-                if i == j || !self.compatible(b, cands[j].index) {
+        let start = cell.store.len();
+        cell.slots[key] = (start / (m * words)) as u32;
+        cell.store.resize(start + m * words, 0);
+        let table = &mut cell.store[start..];
+        let allowed_a = &cell.allowed[a * words..(a + 1) * words];
+        let allowed_b = &cell.allowed[b * words..(b + 1) * words];
+        for_each_bit(allowed_a, |i| {
+            let row = &mut table[i * words..(i + 1) * words];
+            let si = cell.cands[i].slack + tol;
+            let angles = &cell.angles[i * m..(i + 1) * m];
+            for_each_bit(allowed_b, |j| {
+                if i != j && (theta - angles[j]).abs() <= si + cell.cands[j].slack {
+                    bit_set(row, j);
+                }
+            });
+        });
+    }
+
+    /// Whether detection `d`, under `pose`, is within the hypothesis threshold of one of the
+    /// candidates in `x & y & z` other than `exclude`.
+    fn sees_one_of(
+        &self,
+        pose: &Pose,
+        d: usize,
+        rows: &[&[u64]; 3],
+        exclude: [usize; 3],
+        cands: &[Candidate],
+    ) -> bool {
+        let threshold = HYPOTHESIS_THRESHOLD_FACTOR * self.noise;
+        let cos_threshold = threshold.min(std::f64::consts::PI).cos();
+        let bearing = self.directions[d];
+        for (w, ((&p, &q), &r)) in rows[0].iter().zip(rows[1]).zip(rows[2]).enumerate() {
+            let mut bits = p & q & r;
+            while bits != 0 {
+                let m = w * 64 + bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                if exclude.contains(&m) {
                     continue;
                 }
-                let w = cands[i].slack + cands[j].slack + tol;
-                if (theta - angles[i * n + j]).abs() <= w {
-                    bit_set(&mut table[i], j);
+                let l = &self.db.landmarks()[cands[m].index];
+                let v =
+                    pose.inverse_transform_vector(&(l.position_in_world - pose.translation.vector));
+                let r = v.norm();
+                // Survey error widens the threshold for near landmarks.
+                let cos_t = if l.sigma_m > 0.0 && r > 0.0 {
+                    (threshold
+                        + HYPOTHESIS_THRESHOLD_FACTOR
+                            * self.options.inlier_threshold_sigmas
+                            * l.sigma_m
+                            / r)
+                        .min(std::f64::consts::PI)
+                        .cos()
+                } else {
+                    cos_threshold
+                };
+                if r > 0.0 && v.dot(&bearing) >= cos_t * r {
+                    return true;
                 }
             }
         }
-        table
+        false
     }
 
     /// Scores a pose against a set of landmarks: (inliers, cost, assignment).
@@ -383,6 +500,28 @@ fn same_pose(a: &Pose, b: &Pose) -> bool {
         && (a.rotation.inverse() * b.rotation).angle() < DISTINCT_ROTATION_RAD
 }
 
+/// The range of elevations (radians) of the offset `v = L − c` seen from every point of the
+/// cylinder of horizontal radius `half_horizontal` and half-height `half_vertical` around the
+/// cell centre `c` (which contains the cell). Elevation `atan2(dz, d)` is monotone in the
+/// height difference `dz` and in the horizontal distance `d ≥ 0` separately, so its extremes
+/// are at the corners of `[dz ± half_vertical] × [max(0, d − half_horizontal), d +
+/// half_horizontal]`.
+fn elevation_range(v: &Vector3<f64>, half_horizontal: f64, half_vertical: f64) -> (f64, f64) {
+    let d = v.xy().norm();
+    let ds = [(d - half_horizontal).max(0.0), d + half_horizontal];
+    let zs = [v.z - half_vertical, v.z + half_vertical];
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    for dz in zs {
+        for dh in ds {
+            let e = dz.atan2(dh);
+            lo = lo.min(e);
+            hi = hi.max(e);
+        }
+    }
+    (lo, hi)
+}
+
 /// Fisher–Yates shuffle with the crate's reproducible generator.
 fn shuffle<T>(items: &mut [T], seed: u64) {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
@@ -400,7 +539,8 @@ pub(super) fn run(
 ) -> Result<MatchResult, MatchError> {
     validate(detections, options)?;
     let n = detections.len();
-    let (centres, radius) = cells(area, options.cell_size_m)?;
+    let (centres, step) = cells(area, options.cell_size_m)?;
+    let radius = 0.5 * step.norm();
     if n < 3 {
         return Ok(MatchResult::failed(
             MatchStatus::TooFewDetections,
@@ -435,9 +575,29 @@ pub(super) fn run(
         scratch_best: Vec::new(),
     };
 
-    // The cells with candidates, each with its pairwise landmark angles.
+    // The cells with candidates, each with its pairwise landmark angles, nearest to the
+    // area's centre first.
+    let up = match options.up_in_rig {
+        Some((u, tol)) => {
+            let u = try_unit(&u).ok_or(MatchError::InvalidOption("up_in_rig"))?;
+            if !(tol.is_finite() && tol >= 0.0) {
+                return Err(MatchError::InvalidOption("up_in_rig"));
+            }
+            Some((u, tol))
+        }
+        None => None,
+    };
     let mut near = Vec::new();
-    let mut cell_data: Vec<Cell> = Vec::new();
+    let mut cell_data: Vec<CellData> = Vec::new();
+    let area_centre = area.center();
+    let mut centres = centres;
+    centres.sort_by(|x, y| {
+        (x - area_centre)
+            .norm()
+            .total_cmp(&(y - area_centre).norm())
+    });
+    let half_horizontal = 0.5 * step.xy().norm();
+    let half_vertical = 0.5 * step.z;
     for centre in &centres {
         let cands = search.candidates(centre, radius, &mut near);
         if cands.len() < 3 {
@@ -452,8 +612,48 @@ pub(super) fn run(
                 angles[j * m + i] = a;
             }
         }
+        let words = m.div_ceil(64);
+        let mut allowed = vec![0u64; n * words];
+        // Per candidate: its elevation range over the cell, widened by the tilt tolerance,
+        // the bearing noise and the survey error.
+        let gates: Vec<Option<(f64, f64)>> = cands
+            .iter()
+            .map(|cand| {
+                let (_, tol) = up?;
+                let l = &db.landmarks()[cand.index];
+                let v = l.position_in_world - centre;
+                let (lo, hi) = elevation_range(&v, half_horizontal, half_vertical);
+                let margin = tol
+                    + search.noise
+                    + options.inlier_threshold_sigmas * l.sigma_m / v.norm().max(radius);
+                Some((lo - margin, hi + margin))
+            })
+            .collect();
+        for d in 0..n {
+            let elevation = up.map(|(u, _)| search.directions[d].dot(&u).clamp(-1.0, 1.0).asin());
+            for (i, cand) in cands.iter().enumerate() {
+                if !search.compatible(d, cand.index) {
+                    continue;
+                }
+                if let (Some(e), Some((lo, hi))) = (elevation, gates[i])
+                    && (e < lo || e > hi)
+                {
+                    continue;
+                }
+                bit_set(&mut allowed[d * words..(d + 1) * words], i);
+            }
+        }
         let indices = cands.iter().map(|c| c.index).collect();
-        cell_data.push((*centre, cands, angles, indices));
+        cell_data.push(CellData {
+            centre: *centre,
+            cands,
+            angles,
+            indices,
+            words,
+            allowed,
+            slots: vec![NO_TABLE; n * n],
+            store: Vec::new(),
+        });
     }
     if cell_data.is_empty() {
         return Ok(MatchResult::failed(
@@ -464,7 +664,17 @@ pub(super) fn run(
     }
 
     // Detection triples from the core detections, in a fixed pseudo-random order.
-    let core = core_detections(&search.directions, options.max_core_detections);
+    let usable: Vec<bool> = (0..n)
+        .map(|d| {
+            cell_data.iter().any(|cell| {
+                cell.allowed[d * cell.words..(d + 1) * cell.words]
+                    .iter()
+                    .any(|&w| w != 0)
+            })
+        })
+        .collect();
+    let core = core_detections(&search.directions, &usable, options.max_core_detections);
+    let n_usable = usable.iter().filter(|&&u| u).count();
     let mut triples = Vec::new();
     for x in 0..core.len() {
         for y in x + 1..core.len() {
@@ -484,6 +694,8 @@ pub(super) fn run(
     triples.truncate(options.max_detection_triples);
 
     let position_margin = options.visibility_range_m * 2.0 * search.noise;
+    let mut survivors: Vec<[usize; 3]> = Vec::new();
+
     'triples: for (t, &[a, b, c]) in triples.iter().enumerate() {
         let bearings = [
             search.directions[a],
@@ -494,83 +706,149 @@ pub(super) fn run(
         // The orientation test is used only when the sign of the detections' determinant is
         // beyond the noise (each bearing moves by at most `noise`).
         let det_b_reliable = det_b.abs() > 3.0 * search.noise;
-        for (centre, cands, angles, indices) in &cell_data {
-            let m = cands.len();
-            let words = m.div_ceil(64);
-            let ab = search.pair_table(cands, angles, a, b, words);
-            let ac = search.pair_table(cands, angles, a, c, words);
-            let bc = search.pair_table(cands, angles, b, c, words);
-            for i in 0..m {
-                if ab[i].iter().all(|&w| w == 0) || ac[i].iter().all(|&w| w == 0) {
-                    continue;
-                }
-                for (wj, &word_j) in ab[i].iter().enumerate() {
-                    let mut bits_j = word_j;
-                    while bits_j != 0 {
-                        let j = wj * 64 + bits_j.trailing_zeros() as usize;
-                        bits_j &= bits_j - 1;
-                        for wk in 0..words {
-                            let mut bits_k = ac[i][wk] & bc[j][wk];
+        let extensions: Vec<usize> = core
+            .iter()
+            .copied()
+            .filter(|&l| l != a && l != b && l != c)
+            .collect();
+        for cell in &mut cell_data {
+            let words = cell.words;
+            for (p, q) in [(a, b), (a, c), (b, c)] {
+                search.ensure_table(cell, p, q);
+            }
+            // Landmark triples (i, j, k) that pass the three pair tables.
+            survivors.clear();
+            {
+                let ab = cell.table(a * n + b);
+                let ac = cell.table(a * n + c);
+                let bc = cell.table(b * n + c);
+                for i in 0..cell.cands.len() {
+                    let ab_i = &ab[i * words..(i + 1) * words];
+                    let ac_i = &ac[i * words..(i + 1) * words];
+                    if ab_i.iter().all(|&w| w == 0) || ac_i.iter().all(|&w| w == 0) {
+                        continue;
+                    }
+                    for_each_bit(ab_i, |j| {
+                        let bc_j = &bc[j * words..(j + 1) * words];
+                        for (wk, (&x, &y)) in ac_i.iter().zip(bc_j).enumerate() {
+                            let mut bits_k = x & y;
                             while bits_k != 0 {
                                 let k = wk * 64 + bits_k.trailing_zeros() as usize;
                                 bits_k &= bits_k - 1;
-                                if k == i || k == j {
-                                    continue;
-                                }
-                                let points = [
-                                    db.landmarks()[cands[i].index].position_in_world,
-                                    db.landmarks()[cands[j].index].position_in_world,
-                                    db.landmarks()[cands[k].index].position_in_world,
-                                ];
-                                if det_b_reliable {
-                                    let normal =
-                                        (points[1] - points[0]).cross(&(points[2] - points[0]));
-                                    let nn = normal.norm();
-                                    if nn > 0.0
-                                        && (normal.dot(&(centre - points[0])) / nn).abs() > radius
-                                    {
-                                        let det_l = cands[i]
-                                            .direction
-                                            .dot(&cands[j].direction.cross(&cands[k].direction));
-                                        if det_l * det_b < 0.0 {
-                                            continue;
-                                        }
-                                    }
-                                }
-                                for pose in p3p(&bearings, &points) {
-                                    if (pose.translation.vector - centre).norm()
-                                        > radius + position_margin
-                                    {
-                                        continue;
-                                    }
-                                    search.hypotheses += 1;
-                                    // Only hypotheses that could be the best or a close
-                                    // runner-up are worth scoring to the end.
-                                    let best = search.kept.first().map_or(0, |h| h.inliers);
-                                    let needed =
-                                        best.saturating_sub(options.ambiguity_margin + 1).max(4);
-                                    let (inliers, cost, _) = search.score(
-                                        &pose,
-                                        indices,
-                                        HYPOTHESIS_THRESHOLD_FACTOR,
-                                        needed,
-                                    );
-                                    if inliers >= options.min_inliers.min(4) {
-                                        search.keep(pose, inliers, cost, t);
-                                    }
-                                }
-                                if search.hypotheses >= options.max_hypotheses {
-                                    break 'triples;
+                                if k != i && k != j {
+                                    survivors.push([i, j, k]);
                                 }
                             }
                         }
+                    });
+                }
+            }
+            if survivors.is_empty() {
+                continue;
+            }
+            // The quadruple test: other detections that can each be a fourth landmark
+            // consistent with all three pairs.
+            if options.min_extensions > 0 {
+                for &l in &extensions {
+                    for p in [a, b, c] {
+                        search.ensure_table(cell, p, l);
                     }
+                }
+                let cell_ref = &*cell;
+                let row = |p: usize, l: usize, i: usize| cell_ref.row(p * n + l, i);
+                survivors.retain(|&[i, j, k]| {
+                    let mut found = 0;
+                    for &l in &extensions {
+                        if meet_outside(row(a, l, i), row(b, l, j), row(c, l, k), [i, j, k]) {
+                            found += 1;
+                            if found >= options.min_extensions {
+                                return true;
+                            }
+                        }
+                    }
+                    false
+                });
+            }
+            let cell = &*cell;
+            for &[i, j, k] in &survivors {
+                let cands = &cell.cands;
+                let centre = &cell.centre;
+                let points = [
+                    db.landmarks()[cands[i].index].position_in_world,
+                    db.landmarks()[cands[j].index].position_in_world,
+                    db.landmarks()[cands[k].index].position_in_world,
+                ];
+                if det_b_reliable {
+                    let normal = (points[1] - points[0]).cross(&(points[2] - points[0]));
+                    let nn = normal.norm();
+                    if nn > 0.0 && (normal.dot(&(centre - points[0])) / nn).abs() > radius {
+                        let det_l = cands[i]
+                            .direction
+                            .dot(&cands[j].direction.cross(&cands[k].direction));
+                        if det_l * det_b < 0.0 {
+                            continue;
+                        }
+                    }
+                }
+                for pose in p3p(&bearings, &points) {
+                    if (pose.translation.vector - centre).norm() > radius + position_margin {
+                        continue;
+                    }
+                    if let Some((u, tol)) = up {
+                        let up_in_world = pose.rotation * u;
+                        if up_in_world.z.clamp(-1.0, 1.0).acos() > tol + UP_CHECK_MARGIN_RAD {
+                            continue;
+                        }
+                    }
+                    // Preemptive verification: enough other core detections must each see,
+                    // under this exact pose, one of the landmarks the pair tables allowed
+                    // for them.
+                    if options.min_extensions > 0 {
+                        let mut verified = 0;
+                        for &l in &extensions {
+                            let rows = [
+                                cell.row(a * n + l, i),
+                                cell.row(b * n + l, j),
+                                cell.row(c * n + l, k),
+                            ];
+                            if search.sees_one_of(&pose, l, &rows, [i, j, k], cands) {
+                                verified += 1;
+                                if verified >= options.min_extensions {
+                                    break;
+                                }
+                            }
+                        }
+                        if verified < options.min_extensions {
+                            continue;
+                        }
+                    }
+                    search.hypotheses += 1;
+                    // Only hypotheses that could be the best or a close runner-up are worth
+                    // scoring to the end.
+                    let best = search.kept.first().map_or(0, |h| h.inliers);
+                    let needed = best.saturating_sub(options.ambiguity_margin + 1).max(4);
+                    let (inliers, cost, _) =
+                        search.score(&pose, &cell.indices, HYPOTHESIS_THRESHOLD_FACTOR, needed);
+                    if inliers >= options.min_inliers.min(4) {
+                        search.keep(pose, inliers, cost, t);
+                    }
+                }
+                if search.hypotheses >= options.max_hypotheses {
+                    break 'triples;
                 }
             }
         }
-        if search.kept.first().is_some_and(|h| {
-            h.confirmations >= STOP_CONFIRMATIONS && h.inliers >= options.min_inliers
-        }) {
+        // Early stop only for a best that explains at least half the usable detections: a
+        // wrong pose on a repetitive layout can be confirmed twice while the true one (with
+        // more inliers) has not been generated yet.
+        let enough = options
+            .min_inliers
+            .max((STOP_MIN_INLIER_FRACTION * n_usable as f64).ceil() as usize);
+        if search
+            .kept
+            .first()
+            .is_some_and(|h| h.confirmations >= STOP_CONFIRMATIONS && h.inliers >= enough)
+        {
             break;
         }
     }
@@ -654,4 +932,49 @@ pub(super) fn run(
         rms_residual_rad: rms,
     });
     Ok(result)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::RngExt;
+
+    #[test]
+    fn elevation_range_bounds_every_point_of_the_cylinder() {
+        let mut r = crate::synthetic::rng(4);
+        for _ in 0..200 {
+            let v = Vector3::new(
+                r.random_range(-60.0..60.0),
+                r.random_range(-60.0..60.0),
+                r.random_range(-5.0..20.0),
+            );
+            let (hh, hz) = (r.random_range(0.5..10.0), r.random_range(0.0..2.0));
+            let (lo, hi) = elevation_range(&v, hh, hz);
+            assert!(lo <= hi);
+            for _ in 0..50 {
+                let a = r.random_range(0.0..std::f64::consts::TAU);
+                let rho = hh * r.random_range(0.0..1.0f64).sqrt();
+                let x = Vector3::new(rho * a.cos(), rho * a.sin(), r.random_range(-hz..=hz));
+                let w = v - x;
+                let e = w.z.atan2(w.xy().norm());
+                assert!(
+                    e >= lo - 1e-12 && e <= hi + 1e-12,
+                    "{e} not in [{lo}, {hi}]"
+                );
+            }
+            // Tight: the centre's own elevation is inside, and the corners are reached.
+            let e0 = v.z.atan2(v.xy().norm());
+            assert!(lo <= e0 && e0 <= hi);
+        }
+    }
+
+    #[test]
+    fn meet_outside_ignores_the_excluded_bits() {
+        let x = [0b1011u64, 1 << 3];
+        let y = [0b0011u64, 1 << 3];
+        let z = [0b0111u64, u64::MAX];
+        assert!(meet_outside(&x, &y, &z, [5, 6, 7]));
+        assert!(!meet_outside(&x, &y, &z, [0, 1, 67]));
+        assert!(meet_outside(&x, &y, &z, [0, 9, 9]));
+    }
 }
