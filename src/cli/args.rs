@@ -42,6 +42,8 @@ pub enum Command {
     Simulate(super::simulate::SimulateArgs),
     /// Visual GPS for every frame of a logged drive, against satellite GPS and truth.
     Replay(super::replay::ReplayArgs),
+    /// Survey mode: a landmark inventory from a drive's GPS + heading and detections.
+    Map(super::map::MapArgs),
 }
 
 /// Arguments of `vgps locate`.
@@ -175,6 +177,8 @@ pub enum Settings {
     Simulate(super::simulate::SimulateArgs),
     /// `vgps replay`.
     Replay(super::replay::ReplayArgs),
+    /// `vgps map`.
+    Map(super::map::MapArgs),
 }
 
 impl TryFrom<Cli> for Settings {
@@ -198,6 +202,7 @@ impl TryFrom<Cli> for Settings {
             Command::Calib(a) => Settings::Calib(a),
             Command::Simulate(a) => Settings::Simulate(a),
             Command::Replay(a) => Settings::Replay(a),
+            Command::Map(a) => Settings::Map(a),
         })
     }
 }

@@ -12,6 +12,7 @@ pub mod args;
 pub mod calib;
 pub mod demo;
 pub mod locate;
+pub mod map;
 pub mod replay;
 pub mod simulate;
 pub mod triangulate;
@@ -90,6 +91,7 @@ where
         Settings::Demo => demo::run(out),
         Settings::Simulate(a) => simulate::run(&a, out),
         Settings::Replay(a) => replay::run(&a, out, err),
+        Settings::Map(a) => map::run(&a, out, err),
         // Handled above: `vgps calib` reports on its own.
         Settings::Calib(_) => Ok(()),
     });
