@@ -105,7 +105,10 @@ fn precise_gnss_drive(dir: &Path, seed: u64) {
 fn precise_gnss_maps_the_landmarks_within_a_metre() {
     let dir = tempfile::tempdir().unwrap();
     precise_gnss_drive(dir.path(), 1);
-    let summary = run_map(dir.path(), &["--gps-offset", "0.1", "--gnss-sigma-m", "0.25"]);
+    let summary = run_map(
+        dir.path(),
+        &["--gps-offset", "0.1", "--gnss-sigma-m", "0.25"],
+    );
     let c = compare(dir.path(), &dir.path().join("mapped_landmarks.csv"));
     eprintln!("precise GNSS: {c:?}\n{summary}");
     assert_eq!(summary["landmarks"].as_u64(), Some(c.mapped as u64));
@@ -130,7 +133,10 @@ fn precise_gnss_maps_the_landmarks_within_a_metre() {
 fn gps_offset_auto_recovers_the_simulator_lag() {
     let dir = tempfile::tempdir().unwrap();
     precise_gnss_drive(dir.path(), 1);
-    let summary = run_map(dir.path(), &["--gps-offset", "auto", "--gnss-sigma-m", "0.25"]);
+    let summary = run_map(
+        dir.path(),
+        &["--gps-offset", "auto", "--gnss-sigma-m", "0.25"],
+    );
     let sim: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("simulation.json")).unwrap())
             .unwrap();
@@ -149,7 +155,11 @@ fn gps_offset_auto_recovers_the_simulator_lag() {
 fn default_short_drive_is_mapped_and_readable_by_locate() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path().to_str().unwrap();
-    assert!(vgps(&["simulate", "--out", d, "--preset", "short"]).status.success());
+    assert!(
+        vgps(&["simulate", "--out", d, "--preset", "short"])
+            .status
+            .success()
+    );
     let out = dir.path().join("inventory.csv");
     let summary = run_map(dir.path(), &["--out", out.to_str().unwrap()]);
     let c = compare(dir.path(), &out);

@@ -85,7 +85,9 @@ fn parse_offset(text: &str) -> Result<GpsOffset, String> {
     }
     match text.parse::<f64>() {
         Ok(v) if v.is_finite() && v.abs() <= 10.0 => Ok(GpsOffset::Seconds(v)),
-        _ => Err(format!("`{text}` is neither `auto` nor a number of seconds in [-10, 10]")),
+        _ => Err(format!(
+            "`{text}` is neither `auto` nor a number of seconds in [-10, 10]"
+        )),
     }
 }
 
@@ -361,7 +363,7 @@ pub fn run(args: &MapArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<(
             let src = sources.get(&l.id).copied().unwrap_or(&[]);
             let ok = frame_coverage(src) >= args.min_coverage
                 && landmark_chi2(&gps, &frames, src, &options)
-                .is_some_and(|(chi2, dof)| chi2 <= chi2_quantile(dof, CONSISTENCY_Z));
+                    .is_some_and(|(chi2, dof)| chi2 <= chi2_quantile(dof, CONSISTENCY_Z));
             inconsistent += usize::from(!ok);
             ok
         })
@@ -650,7 +652,11 @@ pub fn pearson(pairs: &[(f64, f64)]) -> Option<f64> {
     r.is_finite().then_some(r)
 }
 
-fn write_summary(s: &MapSummary, format: OutputFormat, out: &mut dyn Write) -> Result<(), CliError> {
+fn write_summary(
+    s: &MapSummary,
+    format: OutputFormat,
+    out: &mut dyn Write,
+) -> Result<(), CliError> {
     match format {
         OutputFormat::Json => {
             let text =
@@ -689,9 +695,7 @@ fn write_summary(s: &MapSummary, format: OutputFormat, out: &mut dyn Write) -> R
                 writeln!(out, "corr(1/sigma², n):  {r:.4}")?;
             }
             let o = &s.gps_offset;
-            let sigma = o
-                .sigma_s
-                .map_or_else(String::new, |x| format!(" ± {x:.4}"));
+            let sigma = o.sigma_s.map_or_else(String::new, |x| format!(" ± {x:.4}"));
             writeln!(
                 out,
                 "gps offset ({}):    {:.4}{sigma} s = {:.2} m along track at {:.1} m/s",
