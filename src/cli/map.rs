@@ -434,7 +434,7 @@ fn landmark_chi2(
 }
 
 /// The χ²(dof) quantile at the standard-normal quantile `z` (Wilson–Hilferty:
-/// `dof·(1 − 2/(9 dof) + z √(2/(9 dof)))³`, within 1 % for dof ≥ 3).
+/// `dof·(1 − 2/(9 dof) + z √(2/(9 dof)))³`, within 2 % (above) for dof ≥ 3).
 pub fn chi2_quantile(dof: usize, z: f64) -> f64 {
     let k = dof.max(1) as f64;
     let a = 2.0 / (9.0 * k);
@@ -756,7 +756,7 @@ mod tests {
         // χ² 99.9 % quantiles: dof 3 → 16.27, 10 → 29.59, 100 → 149.45.
         for (dof, q) in [(3, 16.266), (10, 29.588), (100, 149.449)] {
             let r = chi2_quantile(dof, CONSISTENCY_Z) / q;
-            assert!((r - 1.0).abs() < 0.01, "dof {dof}: {r}");
+            assert!((r - 1.0).abs() < 0.02, "dof {dof}: {r}");
         }
     }
 
