@@ -44,6 +44,8 @@ pub enum Command {
     Replay(super::replay::ReplayArgs),
     /// Detect the lamps in every image of a drive (writes a detections file).
     Detect(super::detect::DetectArgs),
+    /// Survey mode: a landmark inventory from a drive's GPS + heading and detections.
+    Map(super::map::MapArgs),
 }
 
 /// Arguments of `vgps locate`.
@@ -191,6 +193,8 @@ pub enum Settings {
     Replay(super::replay::ReplayArgs),
     /// `vgps detect`.
     Detect(super::detect::DetectArgs),
+    /// `vgps map`.
+    Map(super::map::MapArgs),
 }
 
 impl TryFrom<Cli> for Settings {
@@ -217,6 +221,7 @@ impl TryFrom<Cli> for Settings {
             Command::Simulate(a) => Settings::Simulate(a),
             Command::Replay(a) => Settings::Replay(a),
             Command::Detect(a) => Settings::Detect(a),
+            Command::Map(a) => Settings::Map(a),
         })
     }
 }

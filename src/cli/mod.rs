@@ -13,6 +13,7 @@ pub mod calib;
 pub mod demo;
 pub mod detect;
 pub mod locate;
+pub mod map;
 pub mod replay;
 pub mod simulate;
 pub mod triangulate;
@@ -92,6 +93,7 @@ where
         Settings::Simulate(a) => simulate::run(&a, out),
         Settings::Replay(a) => replay::run(&a, out, err),
         Settings::Detect(a) => detect::run(&a, out, err),
+        Settings::Map(a) => map::run(&a, out, err),
         // Handled above: `vgps calib` reports on its own.
         Settings::Calib(_) => Ok(()),
     });

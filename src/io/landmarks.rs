@@ -6,9 +6,9 @@ use std::collections::HashMap;
 use std::io::Read;
 use std::path::Path;
 
-const COLUMNS: &[&str] = &["id", "lat", "lon", "alt", "sigma_m", "class"];
+const COLUMNS: &[&str] = &["id", "lat", "lon", "alt", "sigma_m", "class", "n_obs"];
 const REQUIRED: &[&str] = &["id", "lat", "lon", "alt"];
-const EXPECTED: &str = "id,lat,lon,alt[,sigma_m][,class]";
+const EXPECTED: &str = "id,lat,lon,alt[,sigma_m][,class][,n_obs]";
 
 /// One surveyed landmark.
 ///
@@ -34,7 +34,10 @@ pub struct Landmark {
     pub line: u64,
 }
 
-/// Reads a landmarks file (`id,lat,lon,alt` and optional `sigma_m`, `class`).
+/// Reads a landmarks file (`id,lat,lon,alt` and optional `sigma_m`, `class`, `n_obs`).
+///
+/// `n_obs` (the number of observations of a mapped landmark, written by `vgps map`) is
+/// informational: it is checked (a non-negative integer) and not kept.
 ///
 /// # Errors
 /// [`InputError`] naming the file, line and field: unreadable file, bad header (unknown,
@@ -81,6 +84,11 @@ fn parse_row(row: &Row<'_>) -> Result<Landmark, InputError> {
         && s < 0.0
     {
         return Err(row.error("sigma_m", format!("{s} is negative")));
+    }
+    if let Some(n) = row.optional_f64("n_obs")?
+        && !(n >= 0.0 && n.fract() == 0.0)
+    {
+        return Err(row.error("n_obs", format!("{n} is not a non-negative integer")));
     }
     Ok(Landmark {
         id,
@@ -152,6 +160,21 @@ mod tests {
         assert_eq!(
             (l[1].sigma_m, l[1].class.as_deref(), l[1].line),
             (Some(0.1), None, 5)
+        );
+    }
+
+    #[test]
+    fn n_obs_column_is_checked_and_accepted() {
+        let h = "id,lat,lon,alt,sigma_m,class,n_obs\n";
+        let l = read(&format!("{h}m1,1,2,3,0.1,lamp,12\nm2,1,2,3,0.1,,\n")).unwrap();
+        assert_eq!((l.len(), l[0].class.as_deref()), (2, Some("lamp")));
+        assert_eq!(
+            message(&format!("{h}m1,1,2,3,0.1,lamp,2.5\n")),
+            "L.csv:2: field `n_obs`: 2.5 is not a non-negative integer"
+        );
+        assert_eq!(
+            message(&format!("{h}m1,1,2,3,0.1,lamp,-1\n")),
+            "L.csv:2: field `n_obs`: -1 is not a non-negative integer"
         );
     }
 

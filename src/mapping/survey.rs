@@ -294,10 +294,11 @@ pub(crate) fn survey_inflated(
     })
 }
 
-/// The landmarks as the text of a landmarks.csv (`id,lat,lon,alt,sigma_m,class`) that
+/// The landmarks as the text of a landmarks.csv (`id,lat,lon,alt,sigma_m,class,n_obs`) that
 /// [`crate::io::read_landmarks`] reads: id `m<id>`, WGS84 degrees to 1e-9° (≈ 0.1 mm),
 /// height and `sigma_m` (= [`MappedLandmark::sigma_m`], the worst-axis σ) in metres, class
-/// = `class_names[class]` (its number when out of range, empty when none).
+/// = `class_names[class]` (its number when out of range, empty when none), `n_obs` = the
+/// number of rays (informational for the reader).
 ///
 /// # Errors
 /// [`MappingError::Geo`] when a landmark is outside the supported heights.
@@ -311,7 +312,7 @@ pub fn landmarks_csv(
         path: "<memory>".into(),
         reason: e.to_string(),
     };
-    w.write_record(["id", "lat", "lon", "alt", "sigma_m", "class"])
+    w.write_record(["id", "lat", "lon", "alt", "sigma_m", "class", "n_obs"])
         .map_err(io)?;
     for l in landmarks {
         let g = l
@@ -331,6 +332,7 @@ pub fn landmarks_csv(
             format!("{:.4}", g.alt_m),
             format!("{:.4}", l.sigma_m()),
             class,
+            l.n_obs.to_string(),
         ])
         .map_err(io)?;
     }
