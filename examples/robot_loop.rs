@@ -16,8 +16,13 @@ const FRAMES: usize = 600;
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     // The "world": a simulated drive stands in for the camera and the survey.
     let drive = simulate(&Scenario::preset(Preset::Reference, 1))?;
-    let map = Arc::new(LandmarkMap::from_landmarks(&drive.surveyed_landmarks()?, None)?);
+    let map = Arc::new(LandmarkMap::from_landmarks(
+        &drive.surveyed_landmarks()?,
+        None,
+    )?);
     let rig = Arc::new(drive.scenario.rig.clone());
+    // The simulator's poses are in ENU at the scenario's origin.
+    let sim_frame = vgps::geo::LocalFrame::new(drive.scenario.origin);
 
     let (frames_tx, frames_rx) = mpsc::channel::<Frame>();
     let (fixes_tx, fixes_rx) = mpsc::channel();
@@ -43,7 +48,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let gnss = if k < FRAMES / 2 {
             let p = f.world_from_rig.translation.vector + nalgebra::Vector3::new(1.5, -1.2, 0.5);
             Some(GnssPosition {
-                position: map.frame().try_to_geodetic(&p)?,
+                position: sim_frame.try_to_geodetic(&p)?,
             })
         } else {
             None

@@ -5,8 +5,8 @@
 //! frames per second.
 use criterion::{BatchSize, Criterion, Throughput};
 use std::sync::Arc;
-use vgps::localizer::{Frame, GnssPosition, LandmarkMap, Localizer, LocalizerOptions};
 use vgps::cli::replay::gnss_at;
+use vgps::localizer::{Frame, GnssPosition, LandmarkMap, Localizer, LocalizerOptions};
 use vgps::simulate::{Preset, Scenario, simulate};
 
 /// Benchmark of `process` on every frame of the reference drive but the first.

@@ -105,6 +105,9 @@ pub const SURROGATE_REFRESH_FRAMES: usize = 3;
 /// Surrogates are kept within the visibility range plus this margin of the last fix
 /// (metres), enough for [`SURROGATE_REFRESH_FRAMES`] frames of travel.
 pub const SURROGATE_MARGIN_M: f64 = 20.0;
+/// Default tilt of a vehicle's rig from the vertical that re-acquisition allows (radians,
+/// 5°: road grades and body roll stay within it).
+pub const DEFAULT_LEVEL_TOLERANCE_RAD: f64 = 0.087_266_462_599_716_48;
 /// Vertical half-range of a matcher search area around a prior (metres).
 pub const PRIOR_VERTICAL_HALF_RANGE_M: f64 = 3.0;
 
@@ -134,6 +137,10 @@ pub struct LocalizerOptions {
     pub mapper: MapperOptions,
     /// Options of the matcher (its `sigma_rad` is replaced by the frame's median angular σ).
     pub matcher: MatchOptions,
+    /// The rig's z axis is within this angle of the local vertical (radians) — true of a
+    /// rig on a vehicle: the matcher then prunes by elevation. `None` for a rig that may be
+    /// held at any attitude (a slower search).
+    pub level_tolerance_rad: Option<f64>,
 }
 
 impl Default for LocalizerOptions {
@@ -150,6 +157,7 @@ impl Default for LocalizerOptions {
             surrogates: true,
             mapper: MapperOptions::default(),
             matcher: MatchOptions::default(),
+            level_tolerance_rad: Some(DEFAULT_LEVEL_TOLERANCE_RAD),
         }
     }
 }
@@ -785,6 +793,11 @@ impl Localizer {
         sigmas.sort_by(f64::total_cmp);
         let options = MatchOptions {
             sigma_rad: sigmas[sigmas.len() / 2],
+            up_in_rig: self
+                .options
+                .level_tolerance_rad
+                .map(|tol| (Vector3::z(), tol))
+                .or(self.options.matcher.up_in_rig),
             ..self.options.matcher
         };
         let result = match_detections(self.map.db(), &detections, &area, &options)
