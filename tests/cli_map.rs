@@ -210,12 +210,3 @@ fn unusable_input_is_a_usage_error() {
     let out = vgps(&["map", "x", "--min-obs", "2"]);
     assert_eq!(out.status.code(), Some(2));
 }
-
-/// Writes the precise-GNSS drive to `$VGPS_MAP_DRIVE_DIR` for measurements by hand
-/// (`cargo test --release --test cli_map -- --ignored write_precise`).
-#[test]
-#[ignore]
-fn write_precise_drive_for_measurements() {
-    let dir = std::env::var("VGPS_MAP_DRIVE_DIR").unwrap_or_else(|_| "/tmp/vgps_precise".into());
-    precise_gnss_drive(Path::new(&dir), 1);
-}

@@ -17,7 +17,7 @@
 //! - [`write_outputs`]: all of them into a directory, each written atomically.
 //!
 //! Every difference between two positions is computed in the local East-North-Up frame at
-//! [`DriveInfo::origin`] ([`LocalFrame`]), never in degrees. Every output is deterministic
+//! [`DriveInfo::origin`] ([`LocalFrame`](crate::geo::LocalFrame)), never in degrees. Every output is deterministic
 //! (the same records give byte-identical files) and free of NaN: a missing or non-finite
 //! value is written as an empty field (CSV, NMEA), `null` (JSON) or left out (XML formats).
 //!
