@@ -134,6 +134,37 @@ impl Rig {
         })
     }
 
+    /// The ray of a pixel (as [`Self::ray`]) and its angular standard deviation per axis
+    /// for a pixel σ of `pixel_sigma_px`: the RMS over the two pixel axes of the camera
+    /// model's Jacobian, `σ_px·√(tr(JᵀJ)/2)`. `None` for an unknown camera, a non-finite
+    /// pixel, a pixel outside the image, or a σ that is not positive and finite.
+    ///
+    /// # Units
+    /// Pixels in, metres (origin) and radians (σ) out.
+    pub fn try_ray_with_sigma(
+        &self,
+        camera: usize,
+        pixel: &Pixel,
+        pixel_sigma_px: f64,
+    ) -> Option<(Ray, f64)> {
+        if !(pixel.x.is_finite() && pixel.y.is_finite()) {
+            return None;
+        }
+        let c = self.camera(camera).ok()?;
+        let (bearing, jacobian) = c.model.try_bearing_with_jacobian(pixel)?;
+        let sigma_rad = pixel_sigma_px * ((jacobian.transpose() * jacobian).trace() / 2.0).sqrt();
+        if !(sigma_rad.is_finite() && sigma_rad > 0.0) {
+            return None;
+        }
+        Some((
+            Ray {
+                origin: c.rig_from_camera.translation.vector,
+                direction: c.rig_from_camera.rotation * bearing,
+            },
+            sigma_rad,
+        ))
+    }
+
     /// Every camera and pixel that sees a direction in the rig frame (a point at infinity,
     /// so the camera centres' offsets do not matter). Empty for a zero or non-finite vector.
     pub fn project_direction(&self, direction_in_rig: &Vector3<f64>) -> Vec<RigPixel> {

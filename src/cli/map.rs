@@ -20,7 +20,7 @@
 
 use super::CliError;
 use super::replay::OutputFormat;
-use crate::calibration::{CameraModel, Pixel, Rig};
+use crate::calibration::{Pixel, Rig};
 use crate::drive::{Drive, GnssRecord, Strictness};
 use crate::geo::LocalFrame;
 use crate::geometry::Ray;
@@ -540,26 +540,9 @@ fn covered(gps: &[GpsSample], t: f64, margin: f64) -> bool {
     true
 }
 
-/// The rig-frame ray of a pixel and its angular σ (RMS over the two pixel axes of the
-/// camera model's Jacobian times the pixel σ), as the localizer computes it.
+/// The rig-frame ray of a pixel and its angular σ, as the localizer computes it.
 fn pixel_ray(rig: &Rig, camera: usize, u: f64, v: f64, pixel_sigma_px: f64) -> Option<(Ray, f64)> {
-    if !(u.is_finite() && v.is_finite()) {
-        return None;
-    }
-    let c = rig.camera(camera).ok()?;
-    let (bearing, jacobian) = c.model.try_bearing_with_jacobian(&Pixel::new(u, v))?;
-    let per_px = ((jacobian.transpose() * jacobian).trace() / 2.0).sqrt();
-    let sigma_rad = pixel_sigma_px * per_px;
-    if !(sigma_rad.is_finite() && sigma_rad > 0.0) {
-        return None;
-    }
-    Some((
-        Ray {
-            origin: c.rig_from_camera.translation.vector,
-            direction: c.rig_from_camera.rotation * bearing,
-        },
-        sigma_rad,
-    ))
+    rig.try_ray_with_sigma(camera, &Pixel::new(u, v), pixel_sigma_px)
 }
 
 /// Median horizontal speed between consecutive epochs at most [`MAX_GNSS_GAP_S`] apart

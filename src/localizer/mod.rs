@@ -64,7 +64,7 @@ pub mod track;
 pub use map::LandmarkMap;
 
 use crate::attitude::HeadingPitchRoll;
-use crate::calibration::{CameraModel, Pixel, Rig};
+use crate::calibration::{Pixel, Rig};
 use crate::geo::Geodetic;
 use crate::geometry::{Pose, Ray};
 use crate::mapping::{
@@ -627,25 +627,13 @@ impl Localizer {
         out
     }
 
-    /// The ray of a pixel and its angular σ from the camera model's Jacobian.
+    /// The ray of a pixel and its angular σ (see [`Rig::try_ray_with_sigma`]).
     fn pixel_ray(&self, camera: usize, u: f64, v: f64, class: Option<u32>) -> Option<ObsRay> {
-        if !(u.is_finite() && v.is_finite()) {
-            return None;
-        }
-        let c = self.rig.camera(camera).ok()?;
-        let pixel = Pixel::new(u, v);
-        let (bearing, jacobian) = c.model.try_bearing_with_jacobian(&pixel)?;
-        // RMS angular change per pixel over the two pixel axes.
-        let per_px = ((jacobian.transpose() * jacobian).trace() / 2.0).sqrt();
-        let sigma_rad = self.options.pixel_sigma_px * per_px;
-        if !(sigma_rad.is_finite() && sigma_rad > 0.0) {
-            return None;
-        }
+        let (ray, sigma_rad) =
+            self.rig
+                .try_ray_with_sigma(camera, &Pixel::new(u, v), self.options.pixel_sigma_px)?;
         Some(ObsRay {
-            ray: Ray {
-                origin: c.rig_from_camera.translation.vector,
-                direction: c.rig_from_camera.rotation * bearing,
-            },
+            ray,
             sigma_rad,
             class,
         })
