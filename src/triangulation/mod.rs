@@ -199,9 +199,26 @@ impl Sym3 {
     /// `B·S·B` for symmetric `B` (= `self`) and `S`: the sandwich of a covariance.
     #[inline(always)]
     pub fn sandwich(&self, s: &Self) -> Self {
-        let b = self.to_matrix();
-        let t = b * s.to_matrix() * b;
-        Self::from_matrix(&t)
+        // T = B·S (all nine entries), then the upper triangle of T·B: 45 products.
+        let b = self;
+        let row = |b0: f64, b1: f64, b2: f64| {
+            [
+                b0 * s.xx + b1 * s.xy + b2 * s.xz,
+                b0 * s.xy + b1 * s.yy + b2 * s.yz,
+                b0 * s.xz + b1 * s.yz + b2 * s.zz,
+            ]
+        };
+        let [t00, t01, t02] = row(b.xx, b.xy, b.xz);
+        let [t10, t11, t12] = row(b.xy, b.yy, b.yz);
+        let [t20, t21, t22] = row(b.xz, b.yz, b.zz);
+        Self {
+            xx: t00 * b.xx + t01 * b.xy + t02 * b.xz,
+            xy: t00 * b.xy + t01 * b.yy + t02 * b.yz,
+            xz: t00 * b.xz + t01 * b.yz + t02 * b.zz,
+            yy: t10 * b.xy + t11 * b.yy + t12 * b.yz,
+            yz: t10 * b.xz + t11 * b.yz + t12 * b.zz,
+            zz: t20 * b.xz + t21 * b.yz + t22 * b.zz,
+        }
     }
 
     pub fn scale(&self, k: f64) -> Self {

@@ -394,8 +394,11 @@ fn accumulate_normal(
 #[inline(always)]
 fn solve(a: &Sym3, b: &Vector3<f64>) -> Result<(Sym3, Vector3<f64>), TriangulationError> {
     let (cof, det, e2) = a.cofactors();
-    let reciprocal_condition = det / (a.trace() * e2);
-    if reciprocal_condition.is_nan() || reciprocal_condition < MIN_RECIPROCAL_CONDITION {
+    // det / (tr A · e₂) ≥ MIN_RECIPROCAL_CONDITION without the division (the ratio is only
+    // formed on the error path); false for NaN, and a finite positive det is required.
+    let bound = a.trace() * e2;
+    if !(det > 0.0 && det < f64::INFINITY && det >= MIN_RECIPROCAL_CONDITION * bound) {
+        let reciprocal_condition = det / bound;
         if !a.is_finite() || !(b.x + b.y + b.z).is_finite() {
             return Err(TriangulationError::NonFinite);
         }
