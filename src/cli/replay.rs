@@ -123,6 +123,17 @@ pub fn run(args: &ReplayArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resul
     };
     let mut localizer = Localizer::new(Arc::clone(&rig), Arc::clone(&map), options)
         .map_err(|e| CliError::Internal(e.to_string()))?;
+    // An unusable output directory fails now, not after the whole drive is localized.
+    let out_dir = args
+        .out
+        .clone()
+        .unwrap_or_else(|| args.drive.join("replay"));
+    std::fs::create_dir_all(&out_dir).map_err(|e| {
+        CliError::Output(std::io::Error::new(
+            e.kind(),
+            format!("{}: {e}", out_dir.display()),
+        ))
+    })?;
     let from_images = args.from_images || drive.manifest().detections.is_none();
     let threads = args
         .threads
@@ -194,16 +205,6 @@ pub fn run(args: &ReplayArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resul
     if let Some(bar) = progress {
         bar.finish_and_clear();
     }
-    let out_dir = args
-        .out
-        .clone()
-        .unwrap_or_else(|| args.drive.join("replay"));
-    std::fs::create_dir_all(&out_dir).map_err(|e| {
-        CliError::Output(std::io::Error::new(
-            e.kind(),
-            format!("{}: {e}", out_dir.display()),
-        ))
-    })?;
     let info = DriveInfo {
         name: drive_name(&args.drive),
         origin: map.frame().origin(),
