@@ -285,13 +285,16 @@ fn covariance_grows_as_landmarks_become_collinear() {
     }
 }
 
+/// Makes one (truth pose, three landmarks) problem.
+type MakeProblem = dyn FnMut(&mut vgps::synthetic::TestRng) -> (Pose, [Vector3<f64>; 3]);
+
 /// Monte Carlo coverage of the refinement's position covariance: noisy bearings (σ = 1 mrad)
 /// to three landmarks, refined from the truth; a refused result counts as honest. Returns
 /// (covered, refused, total).
 fn pose_coverage(
     r: &mut vgps::synthetic::TestRng,
     trials: usize,
-    make: &mut dyn FnMut(&mut vgps::synthetic::TestRng) -> (Pose, [Vector3<f64>; 3]),
+    make: &mut MakeProblem,
 ) -> (usize, usize, usize) {
     let sigma = 1e-3;
     let options = RefineOptions {
@@ -322,7 +325,7 @@ fn pose_coverage(
     (covered, refused, trials)
 }
 
-type Maker = Box<dyn FnMut(&mut vgps::synthetic::TestRng) -> (Pose, [Vector3<f64>; 3])>;
+type Maker = Box<MakeProblem>;
 
 fn near_cylinder(off_m: f64) -> Maker {
     Box::new(move |r| {
