@@ -283,7 +283,12 @@ pub(crate) fn check_positive(
     }
 }
 
-/// Checks an image size is non-zero.
+/// Largest accepted image width or height of a camera model, pixels (65,536: larger than
+/// any camera or panorama of the project; an absurd size in a calibration file would
+/// otherwise make the per-pixel tables of `vgps calib` allocate gigabytes).
+pub const MAX_IMAGE_SIDE_PX: u32 = 1 << 16;
+
+/// Checks an image size is non-zero and at most [`MAX_IMAGE_SIDE_PX`] per side.
 pub(crate) fn check_size(
     model: &'static str,
     width: u32,
@@ -293,6 +298,13 @@ pub(crate) fn check_size(
         Err(CalibrationError::InvalidParameters {
             model,
             reason: format!("image size {width}×{height} must be non-zero"),
+        })
+    } else if width > MAX_IMAGE_SIDE_PX || height > MAX_IMAGE_SIDE_PX {
+        Err(CalibrationError::InvalidParameters {
+            model,
+            reason: format!(
+                "image size {width}×{height} exceeds {MAX_IMAGE_SIDE_PX} pixels per side"
+            ),
         })
     } else {
         Ok(())

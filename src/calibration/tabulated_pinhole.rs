@@ -219,7 +219,10 @@ impl TabulatedPinhole {
             check_finite(MODEL, name, value)?;
         }
         let size = match (p.width, p.height) {
-            (Some(w), Some(h)) if w > 0 && h > 0 => Some((w, h)),
+            (Some(w), Some(h)) if w > 0 && h > 0 => {
+                super::check_size(MODEL, w, h)?;
+                Some((w, h))
+            }
             (None, None) => None,
             (w, h) => {
                 return Err(invalid(format!(

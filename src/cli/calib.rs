@@ -148,14 +148,22 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
     Ok((w, h))
 }
 
-/// Runs `vgps calib …` and returns the process exit code (0, or 2 on any failure).
+/// Runs `vgps calib …` and returns the process exit code (0; 1 when `convert` cannot write
+/// its output; 2 on any other failure).
 pub fn run(args: CalibArgs) -> ExitCode {
     let result = match args.command {
         CalibCommand::Show(a) => load(&a.file, &a.source).and_then(|rig| show(&a.file, &rig)),
         CalibCommand::Check(a) => load(&a.file, &a.source).and_then(|rig| check(&a.file, &rig)),
         CalibCommand::Bearings(a) => load(&a.calibration, &a.source).and_then(|rig| bearings(&rig)),
         CalibCommand::Pixels(a) => load(&a.calibration, &a.source).and_then(|rig| pixels(&rig)),
-        CalibCommand::Convert(a) => convert(&a),
+        CalibCommand::Convert(a) => match convert(&a) {
+            Err(ConvertError::Output(message)) => {
+                eprintln!("vgps calib: {message}");
+                return ExitCode::from(super::EXIT_OUTPUT);
+            }
+            Err(ConvertError::Input(message)) => Err(message),
+            Ok(()) => Ok(()),
+        },
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -652,18 +660,25 @@ fn pixels(rig: &Rig) -> Result<(), String> {
         .map_err(io_error)
 }
 
-fn convert(a: &ConvertArgs) -> Result<(), String> {
-    let rig = load(&a.input, &a.source)?;
+/// Why `calib convert` failed: the input (exit 2) or writing the output (exit 1).
+enum ConvertError {
+    Input(String),
+    Output(String),
+}
+
+fn convert(a: &ConvertArgs) -> Result<(), ConvertError> {
+    let rig = load(&a.input, &a.source).map_err(ConvertError::Input)?;
     let rig = match a.to {
         ConvertTarget::Native => rig,
         ConvertTarget::Lut => {
             if a.step == 0 {
-                return Err("--step must be at least 1".into());
+                return Err(ConvertError::Input("--step must be at least 1".into()));
             }
-            to_lut_rig(&rig, a.step, &a.input).map_err(|e: LoadError| e.to_string())?
+            to_lut_rig(&rig, a.step, &a.input)
+                .map_err(|e: LoadError| ConvertError::Input(e.to_string()))?
         }
     };
-    formats::save_native(&rig, &a.output).map_err(|e| e.to_string())?;
+    formats::save_native(&rig, &a.output).map_err(|e| ConvertError::Output(e.to_string()))?;
     eprintln!(
         "wrote {} ({} camera(s), {})",
         a.output.display(),

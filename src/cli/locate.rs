@@ -28,6 +28,11 @@ pub const STATUS_REGION_TOO_LARGE: &str = "region_too_large";
 /// metres.
 pub const MATCH_VERTICAL_HALF_RANGE_M: f64 = 1.0;
 
+/// A `--prior` or `--region` whose circle is farther than this from every landmark, metres,
+/// is refused (exit 2): no landmark could be seen from it, and such a gap is the signature
+/// of coordinates in the wrong unit (radians for degrees) or a swapped latitude/longitude.
+pub const MAX_SEARCH_GAP_TO_LANDMARKS_M: f64 = 100_000.0;
+
 /// The result for one frame: one JSON object of the output.
 ///
 /// Numeric fields are `null` unless `status` is `ok`.
@@ -193,9 +198,35 @@ pub fn locate(
     } = *input;
     let mut geodetic: HashMap<&str, (Geodetic, f64)> = HashMap::new();
     for l in landmarks {
-        let g = Geodetic::try_new(l.lat_deg, l.lon_deg, l.alt_m)
-            .map_err(|e| InputError::field(landmarks_path, l.line, "lat", e.to_string()))?;
+        let g = Geodetic::try_new(l.lat_deg, l.lon_deg, l.alt_m).map_err(|e| {
+            InputError::field(
+                landmarks_path,
+                l.line,
+                crate::io::geodetic_column(&e),
+                e.to_string(),
+            )
+        })?;
         geodetic.insert(&l.id, (g, l.sigma_m.unwrap_or(0.0)));
+    }
+    for (option, area) in [("--prior", prior), ("--region", region)] {
+        let Some(area) = area else { continue };
+        let centre = area.position.to_ecef();
+        let nearest = geodetic
+            .values()
+            .map(|(g, _)| (g.to_ecef() - centre).norm())
+            .fold(f64::INFINITY, f64::min);
+        if nearest.is_finite() && nearest > area.radius_m + MAX_SEARCH_GAP_TO_LANDMARKS_M {
+            return Err(CliError::Calibration(format!(
+                "{option} LAT,LON {},{}: the nearest landmark of {} is {:.0} km away \
+                 (more than {:.0} km beyond RADIUS_M {} m); are the coordinates in degrees?",
+                area.position.lat_deg,
+                area.position.lon_deg,
+                landmarks_path.display(),
+                nearest / 1000.0,
+                MAX_SEARCH_GAP_TO_LANDMARKS_M / 1000.0,
+                area.radius_m
+            )));
+        }
     }
     // Per observation: its ray and its landmark (`None`: no landmark id).
     let mut resolved: Vec<Option<(Ray, Geodetic, f64)>> = Vec::with_capacity(observations.len());

@@ -75,6 +75,9 @@ pub struct ReplayArgs {
 /// What the detections of one frame came from, or why there are none.
 enum FrameDetections {
     Ok(Vec<crate::drive::Detection>),
+    /// Detections of the readable images of a frame some of whose images are unusable
+    /// (the problems, for a warning).
+    Partial(Vec<crate::drive::Detection>, String),
     Bad(String),
 }
 
@@ -123,6 +126,17 @@ pub fn run(args: &ReplayArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resul
     };
     let mut localizer = Localizer::new(Arc::clone(&rig), Arc::clone(&map), options)
         .map_err(|e| CliError::Internal(e.to_string()))?;
+    // An unusable output directory fails now, not after the whole drive is localized.
+    let out_dir = args
+        .out
+        .clone()
+        .unwrap_or_else(|| args.drive.join("replay"));
+    std::fs::create_dir_all(&out_dir).map_err(|e| {
+        CliError::Output(std::io::Error::new(
+            e.kind(),
+            format!("{}: {e}", out_dir.display()),
+        ))
+    })?;
     let from_images = args.from_images || drive.manifest().detections.is_none();
     let threads = args
         .threads
@@ -162,12 +176,15 @@ pub fn run(args: &ReplayArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resul
                 geodetic: t.position,
                 heading_deg: crate::simulate::heading_deg(&t.enu_from_rig),
             });
+            if let FrameDetections::Partial(_, message) = &d {
+                let _ = writeln!(err, "vgps: frame {}: {message}", f.frame);
+            }
             let (status, visual) = match d {
                 FrameDetections::Bad(message) => {
                     let _ = writeln!(err, "vgps: frame {}: {message}", f.frame);
                     ("bad_image".to_string(), None)
                 }
-                FrameDetections::Ok(dets) => {
+                FrameDetections::Ok(dets) | FrameDetections::Partial(dets, _) => {
                     let prior = if args.no_gnss_prior {
                         None
                     } else {
@@ -194,16 +211,6 @@ pub fn run(args: &ReplayArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resul
     if let Some(bar) = progress {
         bar.finish_and_clear();
     }
-    let out_dir = args
-        .out
-        .clone()
-        .unwrap_or_else(|| args.drive.join("replay"));
-    std::fs::create_dir_all(&out_dir).map_err(|e| {
-        CliError::Output(std::io::Error::new(
-            e.kind(),
-            format!("{}: {e}", out_dir.display()),
-        ))
-    })?;
     let info = DriveInfo {
         name: drive_name(&args.drive),
         origin: map.frame().origin(),
@@ -307,19 +314,23 @@ fn detect_batch(
             .chunks(chunk)
             .map(|frames| {
                 let detector = &detector;
-                scope.spawn(move || {
+                let handle = scope.spawn(move || {
                     frames
                         .iter()
                         .map(|f| detect_frame(drive, f, detector))
                         .collect::<Vec<_>>()
-                })
+                });
+                (frames.len(), handle)
             })
             .collect();
         handles
             .into_iter()
-            .flat_map(|h| {
+            .flat_map(|(n, h)| {
+                // One record per frame even when a thread failed, so frames stay aligned.
                 h.join().unwrap_or_else(|_| {
-                    vec![FrameDetections::Bad("detection thread failed".into())]
+                    (0..n)
+                        .map(|_| FrameDetections::Bad("detection thread failed".into()))
+                        .collect()
                 })
             })
             .collect()
@@ -337,9 +348,12 @@ fn detect_frame(
     }
     let result = crate::imaging::detect_frame_images(drive.dir(), frame, drive.rig(), detector);
     let problems = result.problems.len();
-    if problems == 0 || !result.detections.is_empty() && problems < frame.images.len() {
-        // A frame with some unreadable images keeps the detections of the others.
+    if problems == 0 {
         FrameDetections::Ok(result.detections)
+    } else if !result.detections.is_empty() && problems < frame.images.len() {
+        // A frame with some unreadable images keeps the detections of the others.
+        let text = result.problem_text();
+        FrameDetections::Partial(result.detections, text)
     } else {
         FrameDetections::Bad(result.problem_text())
     }

@@ -107,8 +107,9 @@ pub fn triangulate(
         return Ok(Vec::new());
     };
     let geodetic = |r: &RayRecord| {
-        Geodetic::try_new(r.lat_deg, r.lon_deg, r.alt_m)
-            .map_err(|e| InputError::field(path, r.line, "lat", e.to_string()))
+        Geodetic::try_new(r.lat_deg, r.lon_deg, r.alt_m).map_err(|e| {
+            InputError::field(path, r.line, crate::io::geodetic_column(&e), e.to_string())
+        })
     };
     let local = LocalFrame::new(geodetic(first)?);
     let mut order: Vec<String> = Vec::new();

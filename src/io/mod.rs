@@ -95,3 +95,14 @@ impl InputError {
 pub const MAX_ABS_LAT_DEG: f64 = 90.0;
 /// The largest accepted |longitude| (degrees).
 pub const MAX_ABS_LON_DEG: f64 = 180.0;
+
+/// The input column (`lat`, `lon` or `alt`) a [`crate::geo::GeoError`] of
+/// [`crate::geo::Geodetic::try_new`] is about, for error messages that name the field.
+pub fn geodetic_column(e: &crate::geo::GeoError) -> &'static str {
+    use crate::geo::GeoError;
+    match e {
+        GeoError::AltitudeOutOfRange { .. } | GeoError::NonFinite { what: "altitude" } => "alt",
+        GeoError::NonFinite { what: "longitude" } => "lon",
+        _ => "lat",
+    }
+}

@@ -80,7 +80,7 @@ pub fn rays_from_reader<R: Read>(path: &Path, reader: R) -> Result<Vec<RayRecord
         let direction_in_enu = try_unit(&d).ok_or_else(|| {
             row.error(
                 "de",
-                "zero direction: (de, dn, du) must have a non-zero length",
+                "zero or overflowing direction: (de, dn, du) must have a finite non-zero length",
             )
         })?;
         let sigma_pos_m = row.optional_f64("sigma_pos_m")?;
@@ -139,7 +139,7 @@ mod tests {
         let msg = |t: &str| read(&format!("{h}{t}")).unwrap_err().to_string();
         assert_eq!(
             msg("p,37,-122,5,0,0,0\n"),
-            "R.csv:2: field `de`: zero direction: (de, dn, du) must have a non-zero length"
+            "R.csv:2: field `de`: zero or overflowing direction: (de, dn, du) must have a finite non-zero length"
         );
         assert_eq!(
             msg("p,-91,-122,5,0,0,1\n"),

@@ -105,12 +105,13 @@ pub fn parse(text: &str, path: &Path, image_size: Option<(u32, u32)>) -> Result<
     let size_in_file = match (values.get("image_width"), values.get("image_height")) {
         (None, None) => None,
         (Some(&(n, w)), Some(&(_, h))) => {
-            let whole = |v: f64| v.fract() == 0.0 && v >= 1.0 && v <= f64::from(u32::MAX);
+            let max = f64::from(crate::calibration::MAX_IMAGE_SIDE_PX);
+            let whole = |v: f64| v.fract() == 0.0 && v >= 1.0 && v <= max;
             if !whole(w) || !whole(h) {
                 return Err(LoadError::invalid(
                     path,
                     format!("line {n}, key image_width"),
-                    format!("image size {w}×{h} is not two positive integers"),
+                    format!("image size {w}×{h} is not two positive integers ≤ {max}"),
                 ));
             }
             Some((w as u32, h as u32))

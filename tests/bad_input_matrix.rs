@@ -1,0 +1,1123 @@
+//! The bad-input matrix: malformed or hostile inputs to every `vgps` subcommand, one row
+//! each. Every row runs the built binary in a fresh temporary directory and asserts
+//! - the exit code (0 success with per-item failures reported, 1 output error, 2 unusable
+//!   input; never a panic or an abort),
+//! - that stderr contains the given substrings (the file, and the line or the field),
+//! - that no temporary file (`*.tmp*`) is left anywhere in the directory, and, for a
+//!   failing row, that the directory is byte-for-byte as it was before the run (no partial
+//!   output).
+//!
+//! In the arguments and the expected substrings `{t}` is the row's temporary directory and
+//! `{fx}` the committed fixtures directory (`tests/fixtures`).
+mod common;
+
+use common::fixture;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::OnceLock;
+
+/// One row of the matrix.
+struct Row {
+    /// What the row feeds in.
+    name: &'static str,
+    /// Writes the row's input files into the temporary directory.
+    setup: fn(&Path),
+    /// The command line (without `vgps`).
+    args: &'static [&'static str],
+    /// The expected exit code.
+    code: i32,
+    /// Substrings stderr must contain.
+    stderr: &'static [&'static str],
+}
+
+/// A small drive with images (3 frames, 6 PNGs each), simulated once per test run.
+fn base_drive() -> &'static Path {
+    static DRIVE: OnceLock<tempfile::TempDir> = OnceLock::new();
+    DRIVE
+        .get_or_init(|| {
+            let dir = tempfile::tempdir().expect("temp dir");
+            let out = dir.path().join("drive");
+            let o = Command::new(env!("CARGO_BIN_EXE_vgps"))
+                .args([
+                    "simulate",
+                    "--preset",
+                    "short",
+                    "--length-m",
+                    "3",
+                    "--images",
+                ])
+                .args(["--quiet", "--out"])
+                .arg(&out)
+                .output()
+                .expect("vgps runs");
+            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+            dir
+        })
+        .path()
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).expect("mkdir");
+    for e in std::fs::read_dir(from).expect("read dir") {
+        let e = e.expect("entry");
+        let target = to.join(e.file_name());
+        if e.file_type().expect("type").is_dir() {
+            copy_dir(&e.path(), &target);
+        } else {
+            std::fs::copy(e.path(), &target).expect("copy");
+        }
+    }
+}
+
+/// Copies the base drive to `t/d`.
+fn drive(t: &Path) -> PathBuf {
+    let d = t.join("d");
+    copy_dir(&base_drive().join("drive"), &d);
+    d
+}
+
+fn write(t: &Path, name: &str, bytes: impl AsRef<[u8]>) {
+    std::fs::write(t.join(name), bytes).expect("write");
+}
+
+fn fixture_text(name: &str) -> String {
+    std::fs::read_to_string(fixture(name)).expect("fixture")
+}
+
+/// Deterministic binary garbage (invalid UTF-8 on its first line).
+fn garbage() -> Vec<u8> {
+    (0..2000u32).map(|i| ((i * 37 + 128) % 256) as u8).collect()
+}
+
+/// A regular file `t/file` (an output path under it fails with ENOTDIR, even for root).
+fn regular_file(t: &Path) {
+    write(t, "file", "not a directory\n");
+}
+
+/// The PNG `path` with its IHDR rewritten to claim `width × height` (valid CRC).
+fn claim_png_size(path: &Path, width: u32, height: u32) {
+    let mut b = std::fs::read(path).expect("png");
+    b[16..20].copy_from_slice(&width.to_be_bytes());
+    b[20..24].copy_from_slice(&height.to_be_bytes());
+    let crc = crc32(&b[12..29]);
+    b[29..33].copy_from_slice(&crc.to_be_bytes());
+    std::fs::write(path, b).expect("write png");
+}
+
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut crc = 0xFFFF_FFFFu32;
+    for &byte in bytes {
+        crc ^= u32::from(byte);
+        for _ in 0..8 {
+            crc = if crc & 1 == 1 {
+                (crc >> 1) ^ 0xEDB8_8320
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    !crc
+}
+
+const L: &str = "id,lat,lon,alt\n";
+const R: &str = "id,lat,lon,alt,de,dn,du\n";
+
+fn rows() -> Vec<Row> {
+    vec![
+        // ---- vgps locate: landmarks ----
+        Row {
+            name: "landmarks: empty file",
+            setup: |t| write(t, "L.csv", ""),
+            args: &[
+                "locate",
+                "--landmarks",
+                "{t}/L.csv",
+                "--observations",
+                "{fx}/observations.csv",
+            ],
+            code: 2,
+            stderr: &["{t}/L.csv:1: field `header`", "empty"],
+        },
+        Row {
+            name: "landmarks: binary garbage",
+            setup: |t| write(t, "L.csv", garbage()),
+            args: &[
+                "locate",
+                "--landmarks",
+                "{t}/L.csv",
+                "--observations",
+                "{fx}/observations.csv",
+            ],
+            code: 2,
+            stderr: &["{t}/L.csv:1:", "UTF-8"],
+        },
+        Row {
+            name: "landmarks: wrong header",
+            setup: |t| write(t, "L.csv", "name,latitude,longitude,height\nx,1,2,3\n"),
+            args: &[
+                "locate",
+                "--landmarks",
+                "{t}/L.csv",
+                "--observations",
+                "{fx}/observations.csv",
+            ],
+            code: 2,
+            stderr: &["{t}/L.csv:1: field `name`", "unknown column"],
+        },
+        Row {
+            name: "landmarks: truncated in the middle of a row",
+            setup: |t| write(t, "L.csv", &fixture_text("landmarks.csv")[..100]),
+            args: &[
+                "locate",
+                "--landmarks",
+                "{t}/L.csv",
+                "--observations",
+                "{fx}/observations.csv",
+            ],
+            code: 2,
+            stderr: &["{t}/L.csv:3: field `lat`", "missing value"],
+        },
+        Row {
+            name: "landmarks: NaN height",
+            setup: |_| {},
+            args: &[
+                "locate",
+                "--landmarks",
+                "{fx}/bad_landmarks_nan.csv",
+                "--observations",
+                "{fx}/observations.csv",
+            ],
+            code: 2,
+            stderr: &["bad_landmarks_nan.csv:3: field `alt`", "NaN"],
+        },
+        Row {
+            name: "landmarks: infinite height",
+            setup: |t| write(t, "L.csv", format!("{L}lamp1,37.79,-122.39,inf\n")),
+            args: &[
+                "locate",
+                "--landmarks",
+                "{t}/L.csv",
+                "--observations",
+                "{fx}/observations.csv",
+            ],
+            code: 2,
+            stderr: &["{t}/L.csv:2: field `alt`", "not a finite number"],
+        },
+        Row {
+            name: "landmarks: absurd height 1e30 m names `alt`",
+            setup: |t| {
+                let text = fixture_text("landmarks.csv").replace(
+                    "lamp2,37.795842364,-122.393529692,12.000",
+                    "lamp2,37.795842364,-122.393529692,1e30",
+                );
+                write(t, "L.csv", text);
+            },
+            args: &[
+                "locate",
+                "--landmarks",
+                "{t}/L.csv",
+                "--observations",
+                "{fx}/observations.csv",
+            ],
+            code: 2,
+            stderr: &["{t}/L.csv:4: field `alt`", "ellipsoidal height"],
+        },
+        Row {
+            name: "landmarks: duplicate id",
+            setup: |_| {},
+            args: &[
+                "locate",
+                "--landmarks",
+                "{fx}/bad_landmarks_duplicate.csv",
+                "--observations",
+                "{fx}/observations.csv",
+            ],
+            code: 2,
+            stderr: &[
+                "bad_landmarks_duplicate.csv:4: field `id`",
+                "lamp1",
+                "line 2",
+            ],
+        },
+        Row {
+            name: "landmarks: latitude 95",
+            setup: |t| write(t, "L.csv", format!("{L}lamp1,95,0,0\n")),
+            args: &[
+                "locate",
+                "--landmarks",
+                "{t}/L.csv",
+                "--observations",
+                "{fx}/observations.csv",
+            ],
+            code: 2,
+            stderr: &["{t}/L.csv:2: field `lat`", "95"],
+        },
+        Row {
+            name: "landmarks: negative sigma_m",
+            setup: |t| write(t, "L.csv", "id,lat,lon,alt,sigma_m\nlamp1,37,-122,1,-0.5\n"),
+            args: &[
+                "locate",
+                "--landmarks",
+                "{t}/L.csv",
+                "--observations",
+                "{fx}/observations.csv",
+            ],
+            code: 2,
+            stderr: &["{t}/L.csv:2: field `sigma_m`", "negative"],
+        },
+        Row {
+            name: "landmarks: lat/lon in radians (prior in degrees)",
+            setup: |t| {
+                let mut text = String::from(L);
+                for line in fixture_text("landmarks.csv").lines().skip(2) {
+                    let f: Vec<&str> = line.split(',').collect();
+                    let lat: f64 = f[1].parse().expect("lat");
+                    let lon: f64 = f[2].parse().expect("lon");
+                    text += &format!(
+                        "{},{},{},{}\n",
+                        f[0],
+                        lat.to_radians(),
+                        lon.to_radians(),
+                        f[3]
+                    );
+                }
+                write(t, "L.csv", text);
+            },
+            args: &[
+                "locate",
+                "--landmarks",
+                "{t}/L.csv",
+                "--observations",
+                "{fx}/observations.csv",
+                "--prior",
+                "37.7955,-122.3937,7,50",
+            ],
+            code: 2,
+            stderr: &["--prior", "{t}/L.csv", "are the coordinates in degrees?"],
+        },
+        Row {
+            name: "landmarks: a directory",
+            setup: |t| std::fs::create_dir(t.join("L.csv")).expect("mkdir"),
+            args: &[
+                "locate",
+                "--landmarks",
+                "{t}/L.csv",
+                "--observations",
+                "{fx}/observations.csv",
+            ],
+            code: 2,
+            stderr: &["{t}/L.csv: cannot read the file"],
+        },
+        Row {
+            name: "landmarks: missing file",
+            setup: |_| {},
+            args: &[
+                "locate",
+                "--landmarks",
+                "{t}/nothing.csv",
+                "--observations",
+                "{fx}/observations.csv",
+            ],
+            code: 2,
+            stderr: &["{t}/nothing.csv: cannot read the file"],
+        },
+        Row {
+            name: "landmarks and observations: UTF-8 BOM and CRLF line endings are accepted",
+            setup: |t| {
+                let mut bytes = vec![0xEF, 0xBB, 0xBF];
+                bytes.extend(fixture_text("landmarks.csv").replace('\n', "\r\n").bytes());
+                write(t, "L.csv", bytes);
+                write(
+                    t,
+                    "O.csv",
+                    fixture_text("observations.csv").replace('\n', "\r\n"),
+                );
+            },
+            args: &[
+                "locate",
+                "--landmarks",
+                "{t}/L.csv",
+                "--observations",
+                "{t}/O.csv",
+            ],
+            code: 0,
+            stderr: &["frame 2: 4 of 4 observations have no landmark id"],
+        },
+        // ---- vgps locate: prior and options ----
+        Row {
+            name: "prior in radians",
+            setup: |_| {},
+            args: &[
+                "locate",
+                "--landmarks",
+                "{fx}/landmarks.csv",
+                "--observations",
+                "{fx}/observations.csv",
+                "--prior",
+                "0.6596,-2.1362,7,100",
+            ],
+            code: 2,
+            stderr: &[
+                "--prior LAT,LON 0.6596",
+                "landmarks.csv",
+                "km away",
+                "are the coordinates in degrees?",
+            ],
+        },
+        Row {
+            name: "region in radians",
+            setup: |_| {},
+            args: &[
+                "locate",
+                "--landmarks",
+                "{fx}/landmarks.csv",
+                "--observations",
+                "{fx}/observations.csv",
+                "--region",
+                "0.6596,-2.1362,7,1000",
+            ],
+            code: 2,
+            stderr: &["--region LAT,LON 0.6596", "are the coordinates in degrees?"],
+        },
+        Row {
+            name: "prior latitude 91",
+            setup: |_| {},
+            args: &[
+                "locate",
+                "--landmarks",
+                "{fx}/landmarks.csv",
+                "--observations",
+                "{fx}/observations.csv",
+                "--prior",
+                "91,0,0,1",
+            ],
+            code: 2,
+            stderr: &["--prior", "LAT 91"],
+        },
+        Row {
+            name: "prior NaN",
+            setup: |_| {},
+            args: &[
+                "locate",
+                "--landmarks",
+                "{fx}/landmarks.csv",
+                "--observations",
+                "{fx}/observations.csv",
+                "--prior",
+                "37,NaN,0,10",
+            ],
+            code: 2,
+            stderr: &["--prior", "LON `NaN`"],
+        },
+        Row {
+            name: "sigma infinite",
+            setup: |_| {},
+            args: &[
+                "locate",
+                "--landmarks",
+                "{fx}/landmarks.csv",
+                "--observations",
+                "{fx}/observations.csv",
+                "--sigma-deg",
+                "inf",
+            ],
+            code: 2,
+            stderr: &["--sigma-deg", "`inf`"],
+        },
+        // ---- vgps locate: observations ----
+        Row {
+            name: "observations: empty file",
+            setup: |t| write(t, "O.csv", ""),
+            args: &[
+                "locate",
+                "--landmarks",
+                "{fx}/landmarks.csv",
+                "--observations",
+                "{t}/O.csv",
+            ],
+            code: 2,
+            stderr: &["{t}/O.csv:1: field `header`", "empty"],
+        },
+        Row {
+            name: "observations: unknown landmark id",
+            setup: |_| {},
+            args: &[
+                "locate",
+                "--landmarks",
+                "{fx}/landmarks.csv",
+                "--observations",
+                "{fx}/bad_observations_unknown_landmark.csv",
+            ],
+            code: 2,
+            stderr: &[
+                "bad_observations_unknown_landmark.csv:5: field `landmark`",
+                "lamp33",
+            ],
+        },
+        Row {
+            name: "observations: a row with a missing field",
+            setup: |_| {},
+            args: &[
+                "locate",
+                "--landmarks",
+                "{fx}/landmarks.csv",
+                "--observations",
+                "{fx}/bad_observations_fields.csv",
+            ],
+            code: 2,
+            stderr: &["bad_observations_fields.csv:3: field"],
+        },
+        Row {
+            name: "observations: zero bearing",
+            setup: |_| {},
+            args: &[
+                "locate",
+                "--landmarks",
+                "{fx}/landmarks.csv",
+                "--observations",
+                "{fx}/bad_observations_zero_bearing.csv",
+            ],
+            code: 2,
+            stderr: &[
+                "bad_observations_zero_bearing.csv:3: field `bx`",
+                "zero bearing",
+            ],
+        },
+        Row {
+            name: "observations: pixels without a calibration",
+            setup: |_| {},
+            args: &[
+                "locate",
+                "--landmarks",
+                "{fx}/landmarks.csv",
+                "--observations",
+                "{fx}/bad_observations_pixels.csv",
+            ],
+            code: 2,
+            stderr: &[
+                "bad_observations_pixels.csv:2: field `camera`",
+                "--calibration",
+            ],
+        },
+        Row {
+            name: "observations: pixel 1e9 outside the image",
+            setup: |t| write(t, "O.csv", "frame,camera,u,v,landmark\n0,0,1e9,3,lamp1\n"),
+            args: &[
+                "locate",
+                "--landmarks",
+                "{fx}/landmarks.csv",
+                "--observations",
+                "{t}/O.csv",
+                "--calibration",
+                "{fx}/calibration/native_mixed.json",
+            ],
+            code: 2,
+            stderr: &["{t}/O.csv:2: field `camera`", "outside"],
+        },
+        Row {
+            name: "calibration with an absurd image size (locate)",
+            setup: |t| {
+                let text = std::fs::read_to_string(fixture("calibration/native_mixed.json"))
+                    .expect("json");
+                write(
+                    t,
+                    "c.json",
+                    text.replacen("\"width\": 64", "\"width\": 4000000000", 1),
+                );
+                write(t, "O.csv", "frame,camera,u,v,landmark\n0,0,1,3,lamp1\n");
+            },
+            args: &[
+                "locate",
+                "--landmarks",
+                "{fx}/landmarks.csv",
+                "--observations",
+                "{t}/O.csv",
+                "--calibration",
+                "{t}/c.json",
+            ],
+            code: 2,
+            stderr: &["{t}/c.json", "cameras[0].camera", "exceeds 65536 pixels"],
+        },
+        // ---- vgps triangulate ----
+        Row {
+            name: "rays: not a number",
+            setup: |_| {},
+            args: &["triangulate", "--rays", "{fx}/bad_rays_not_a_number.csv"],
+            code: 2,
+            stderr: &["bad_rays_not_a_number.csv:3: field `dn`", "north"],
+        },
+        Row {
+            name: "rays: direction 1e308 overflows",
+            setup: |t| {
+                write(
+                    t,
+                    "R.csv",
+                    format!(
+                        "{R}s,37.7955,-122.3937,7,1e308,1e308,1e308\ns,37.7956,-122.3937,7,1,0,0\n"
+                    ),
+                )
+            },
+            args: &["triangulate", "--rays", "{t}/R.csv"],
+            code: 2,
+            stderr: &["{t}/R.csv:2: field `de`", "overflowing"],
+        },
+        Row {
+            name: "rays: absurd observer height names `alt`",
+            setup: |t| {
+                write(
+                    t,
+                    "R.csv",
+                    format!("{R}s,37.7955,-122.3937,1e30,1,0,0\ns,37.7956,-122.3937,7,1,0,0\n"),
+                )
+            },
+            args: &["triangulate", "--rays", "{t}/R.csv"],
+            code: 2,
+            stderr: &["{t}/R.csv:2: field `alt`", "ellipsoidal height"],
+        },
+        Row {
+            name: "rays: zero sigma_ang_deg",
+            setup: |t| {
+                write(
+                    t,
+                    "R.csv",
+                    "id,lat,lon,alt,de,dn,du,sigma_ang_deg\ns,37,-122,7,1,0,0,0\n",
+                )
+            },
+            args: &["triangulate", "--rays", "{t}/R.csv"],
+            code: 2,
+            stderr: &["{t}/R.csv:2: field `sigma_ang_deg`", "not positive"],
+        },
+        Row {
+            name: "rays: a landmarks file instead",
+            setup: |_| {},
+            args: &["triangulate", "--rays", "{fx}/landmarks.csv"],
+            code: 2,
+            stderr: &["landmarks.csv:2: field `sigma_m`", "unknown column"],
+        },
+        Row {
+            name: "rays: duplicated rays (no parallax) are reported, not fatal",
+            setup: |t| {
+                write(
+                    t,
+                    "R.csv",
+                    format!(
+                        "{R}s,37.7955,-122.3937,7,0.43,0.89,0.07\ns,37.7955,-122.3937,7,0.43,0.89,0.07\n"
+                    ),
+                )
+            },
+            args: &["triangulate", "--rays", "{t}/R.csv"],
+            code: 0,
+            stderr: &["{t}/R.csv: id `s` (line 2, 3): not triangulated"],
+        },
+        Row {
+            name: "rays: UTF-8 BOM and CRLF are accepted",
+            setup: |t| {
+                let mut bytes = vec![0xEF, 0xBB, 0xBF];
+                bytes.extend(fixture_text("rays.csv").replace('\n', "\r\n").bytes());
+                write(t, "R.csv", bytes);
+            },
+            args: &["triangulate", "--rays", "{t}/R.csv"],
+            code: 0,
+            stderr: &["{t}/R.csv: id `tree3` (line 9)"],
+        },
+        // ---- vgps calib ----
+        Row {
+            name: "calib: JSON width 4e9 (would allocate 64 GB)",
+            setup: |t| {
+                let text = std::fs::read_to_string(fixture("calibration/native_mixed.json"))
+                    .expect("json");
+                write(
+                    t,
+                    "c.json",
+                    text.replacen("\"width\": 64", "\"width\": 4000000000", 1),
+                );
+            },
+            args: &["calib", "show", "{t}/c.json"],
+            code: 2,
+            stderr: &[
+                "{t}/c.json: cameras[0].camera",
+                "4000000000×48 exceeds 65536",
+            ],
+        },
+        Row {
+            name: "calib: Ladybug INI claiming 100000000×100000000",
+            setup: |t| {
+                let text =
+                    std::fs::read_to_string(fixture("calibration/ladybug_64x48.ini")).expect("ini");
+                write(
+                    t,
+                    "c.ini",
+                    text.replace("image_width = 64", "image_width = 100000000")
+                        .replace("image_height = 48", "image_height = 100000000"),
+                );
+            },
+            args: &["calib", "check", "{t}/c.ini"],
+            code: 2,
+            stderr: &["{t}/c.ini: line 2, key image_width"],
+        },
+        Row {
+            name: "calib: NaN focal length",
+            setup: |t| {
+                let text =
+                    std::fs::read_to_string(fixture("calibration/ladybug_64x48.ini")).expect("ini");
+                write(
+                    t,
+                    "c.ini",
+                    text.replace("camera0_FocalLen = 40", "camera0_FocalLen = nan"),
+                );
+            },
+            args: &["calib", "show", "{t}/c.ini"],
+            code: 2,
+            stderr: &["{t}/c.ini: line 10, key camera0_FocalLen", "not finite"],
+        },
+        Row {
+            name: "calib: truncated JSON",
+            setup: |t| {
+                let text = std::fs::read_to_string(fixture("calibration/native_mixed.json"))
+                    .expect("json");
+                write(t, "c.json", &text[..500]);
+            },
+            args: &["calib", "show", "{t}/c.json"],
+            code: 2,
+            stderr: &["{t}/c.json: line 26"],
+        },
+        Row {
+            name: "calib: binary garbage",
+            setup: |t| write(t, "c.bin", garbage()),
+            args: &["calib", "show", "{t}/c.bin"],
+            code: 2,
+            stderr: &["{t}/c.bin: cannot tell the calibration format"],
+        },
+        Row {
+            name: "calib convert: output under a regular file",
+            setup: regular_file,
+            args: &[
+                "calib",
+                "convert",
+                "--to",
+                "native",
+                "{fx}/calibration/ladybug_64x48.ini",
+                "{t}/file/out.json",
+            ],
+            code: 1,
+            stderr: &["{t}/file/out.json", "Not a directory"],
+        },
+        // ---- vgps simulate ----
+        Row {
+            name: "simulate: 1e12 m route",
+            setup: |_| {},
+            args: &[
+                "simulate",
+                "--preset",
+                "short",
+                "--length-m",
+                "1e12",
+                "--out",
+                "{t}/s",
+            ],
+            code: 2,
+            stderr: &["invalid scenario", "100 km"],
+        },
+        Row {
+            name: "simulate: origin latitude 100",
+            setup: |_| {},
+            args: &[
+                "simulate", "--preset", "short", "--origin", "100,0", "--out", "{t}/s",
+            ],
+            code: 2,
+            stderr: &["--origin", "100,0"],
+        },
+        Row {
+            name: "simulate: calibration with an absurd image size",
+            setup: |t| {
+                let text = std::fs::read_to_string(fixture("calibration/native_mixed.json"))
+                    .expect("json");
+                write(
+                    t,
+                    "c.json",
+                    text.replacen("\"height\": 48", "\"height\": 100000", 1),
+                );
+            },
+            args: &[
+                "simulate",
+                "--preset",
+                "short",
+                "--length-m",
+                "10",
+                "--calibration",
+                "{t}/c.json",
+                "--out",
+                "{t}/s",
+            ],
+            code: 2,
+            stderr: &["{t}/c.json", "exceeds 65536"],
+        },
+        Row {
+            name: "simulate: output under a regular file",
+            setup: regular_file,
+            args: &[
+                "simulate",
+                "--preset",
+                "short",
+                "--length-m",
+                "10",
+                "--out",
+                "{t}/file/s",
+            ],
+            code: 1,
+            stderr: &["{t}/file/s", "Not a directory"],
+        },
+        // ---- vgps replay ----
+        Row {
+            name: "replay: no drive.json",
+            setup: |t| std::fs::create_dir(t.join("d")).expect("mkdir"),
+            args: &["replay", "{t}/d", "--quiet"],
+            code: 2,
+            stderr: &["{t}/d/drive.json: cannot read the file"],
+        },
+        Row {
+            name: "replay: truncated drive.json",
+            setup: |t| {
+                let d = drive(t);
+                let text = std::fs::read_to_string(d.join("drive.json")).expect("manifest");
+                std::fs::write(d.join("drive.json"), &text[..40]).expect("write");
+            },
+            args: &["replay", "{t}/d", "--quiet"],
+            code: 2,
+            stderr: &["{t}/d/drive.json:", "field `json`"],
+        },
+        Row {
+            name: "replay: empty drive.json",
+            setup: |t| std::fs::write(drive(t).join("drive.json"), "").expect("write"),
+            args: &["replay", "{t}/d", "--quiet"],
+            code: 2,
+            stderr: &["{t}/d/drive.json:1: field `json`"],
+        },
+        Row {
+            name: "replay: drive.json is a directory",
+            setup: |t| {
+                let d = drive(t);
+                std::fs::remove_file(d.join("drive.json")).expect("rm");
+                std::fs::create_dir(d.join("drive.json")).expect("mkdir");
+            },
+            args: &["replay", "{t}/d", "--quiet"],
+            code: 2,
+            stderr: &["{t}/d/drive.json: cannot read the file"],
+        },
+        Row {
+            name: "replay: drive.json version 99",
+            setup: |t| {
+                let d = drive(t);
+                let text = std::fs::read_to_string(d.join("drive.json")).expect("manifest");
+                std::fs::write(
+                    d.join("drive.json"),
+                    text.replace("\"version\": 1", "\"version\": 99"),
+                )
+                .expect("write");
+            },
+            args: &["replay", "{t}/d", "--quiet"],
+            code: 2,
+            stderr: &["{t}/d/drive.json:2: field `version`", "99"],
+        },
+        Row {
+            name: "replay: calibration file missing",
+            setup: |t| std::fs::remove_file(drive(t).join("calibration.json")).expect("rm"),
+            args: &["replay", "{t}/d", "--quiet"],
+            code: 2,
+            stderr: &["{t}/d/calibration.json"],
+        },
+        Row {
+            name: "replay: frames.csv NaN time",
+            setup: |t| {
+                std::fs::write(drive(t).join("frames.csv"), "frame,time_s\n0,1\n1,NaN\n")
+                    .expect("write")
+            },
+            args: &["replay", "{t}/d", "--quiet"],
+            code: 2,
+            stderr: &["{t}/d/frames.csv:3: field `time_s`", "NaN"],
+        },
+        Row {
+            name: "replay: frames.csv duplicate frame",
+            setup: |t| {
+                std::fs::write(drive(t).join("frames.csv"), "frame,time_s\n0,1\n0,2\n")
+                    .expect("write")
+            },
+            args: &["replay", "{t}/d", "--quiet"],
+            code: 2,
+            stderr: &["{t}/d/frames.csv:3: field `frame`"],
+        },
+        Row {
+            name: "replay: duplicate landmark id in the drive",
+            setup: |t| {
+                let d = drive(t);
+                let text = std::fs::read_to_string(d.join("landmarks.csv")).expect("landmarks");
+                let mut lines: Vec<&str> = text.lines().collect();
+                let dup = lines[1].to_string();
+                lines.insert(2, &dup);
+                std::fs::write(d.join("landmarks.csv"), lines.join("\n") + "\n").expect("write");
+            },
+            args: &["replay", "{t}/d", "--quiet"],
+            code: 2,
+            stderr: &["{t}/d/landmarks.csv:3: field `id`", "duplicate"],
+        },
+        Row {
+            name: "replay: landmarks.csv is binary garbage",
+            setup: |t| std::fs::write(drive(t).join("landmarks.csv"), garbage()).expect("write"),
+            args: &["replay", "{t}/d", "--quiet"],
+            code: 2,
+            stderr: &["{t}/d/landmarks.csv:1:", "UTF-8"],
+        },
+        Row {
+            name: "replay: zero pixel sigma",
+            setup: |t| {
+                drive(t);
+            },
+            args: &["replay", "{t}/d", "--quiet", "--pixel-sigma-px", "0"],
+            code: 2,
+            stderr: &["--pixel-sigma-px 0"],
+        },
+        Row {
+            name: "replay: output directory under a regular file (fails before localizing)",
+            setup: |t| {
+                drive(t);
+                regular_file(t);
+            },
+            args: &["replay", "{t}/d", "--quiet", "--out", "{t}/file/r"],
+            code: 1,
+            stderr: &["{t}/file/r", "Not a directory"],
+        },
+        Row {
+            name: "replay --from-images: a frame references a missing image",
+            setup: |t| std::fs::remove_file(drive(t).join("images/000001_2.png")).expect("rm"),
+            args: &[
+                "replay",
+                "{t}/d",
+                "--quiet",
+                "--from-images",
+                "--threads",
+                "1",
+                "--out",
+                "{t}/r",
+            ],
+            code: 0,
+            stderr: &["frame 1", "{t}/d/images/000001_2.png"],
+        },
+        // ---- vgps detect ----
+        Row {
+            name: "detect: PNG header claiming 100000×100000",
+            setup: |t| claim_png_size(&drive(t).join("images/000000_0.png"), 100_000, 100_000),
+            args: &[
+                "detect",
+                "{t}/d",
+                "--quiet",
+                "--threads",
+                "1",
+                "--out",
+                "{t}/det.csv",
+            ],
+            code: 0,
+            stderr: &["frame 0: {t}/d/images/000000_0.png", "100000×100000"],
+        },
+        Row {
+            name: "detect: truncated PNG, garbage PNG, missing PNG",
+            setup: |t| {
+                let d = drive(t);
+                let png = std::fs::read(d.join("images/000001_2.png")).expect("png");
+                std::fs::write(d.join("images/000001_2.png"), &png[..1000]).expect("write");
+                std::fs::write(d.join("images/000000_4.png"), garbage()).expect("write");
+                std::fs::remove_file(d.join("images/000002_3.png")).expect("rm");
+            },
+            args: &[
+                "detect",
+                "{t}/d",
+                "--quiet",
+                "--threads",
+                "1",
+                "--out",
+                "{t}/det.csv",
+            ],
+            code: 0,
+            stderr: &[
+                "frame 0: {t}/d/images/000000_4.png: not a PNG file",
+                "frame 1: {t}/d/images/000001_2.png",
+                "frame 2: {t}/d/images/000002_3.png",
+            ],
+        },
+        Row {
+            name: "detect: an image path that is a directory",
+            setup: |t| {
+                let d = drive(t);
+                std::fs::remove_file(d.join("images/000001_1.png")).expect("rm");
+                std::fs::create_dir(d.join("images/000001_1.png")).expect("mkdir");
+            },
+            args: &[
+                "detect",
+                "{t}/d",
+                "--quiet",
+                "--threads",
+                "1",
+                "--out",
+                "{t}/det.csv",
+            ],
+            code: 0,
+            stderr: &["frame 1: {t}/d/images/000001_1.png"],
+        },
+        Row {
+            name: "detect: no image columns",
+            setup: |t| {
+                std::fs::write(
+                    drive(t).join("frames.csv"),
+                    "frame,time_s\n0,1\n1,1.2\n2,1.4\n",
+                )
+                .expect("write")
+            },
+            args: &["detect", "{t}/d", "--quiet", "--out", "{t}/det.csv"],
+            code: 2,
+            stderr: &["{t}/d", "no frame names an image"],
+        },
+        Row {
+            name: "detect: output is a directory",
+            setup: |t| {
+                drive(t);
+                std::fs::create_dir(t.join("det.csv")).expect("mkdir");
+            },
+            args: &[
+                "detect",
+                "{t}/d",
+                "--quiet",
+                "--threads",
+                "1",
+                "--out",
+                "{t}/det.csv",
+            ],
+            code: 1,
+            stderr: &["{t}/det.csv", "Is a directory"],
+        },
+        // ---- vgps map ----
+        Row {
+            name: "map: GNSS file of garbage (no fix, no heading)",
+            setup: |t| std::fs::write(drive(t).join("gnss.nmea"), garbage()).expect("write"),
+            args: &["map", "{t}/d", "--out", "{t}/m.csv"],
+            code: 2,
+            stderr: &["{t}/d/gnss.nmea", "lines skipped", "no GNSS fix"],
+        },
+        Row {
+            name: "map: output under a regular file",
+            setup: |t| {
+                drive(t);
+                regular_file(t);
+            },
+            args: &["map", "{t}/d", "--out", "{t}/file/m.csv"],
+            code: 1,
+            stderr: &["{t}/file/m.csv", "Not a directory"],
+        },
+        Row {
+            name: "map: coverage 2",
+            setup: |t| {
+                drive(t);
+            },
+            args: &["map", "{t}/d", "--min-coverage", "2"],
+            code: 2,
+            stderr: &["--min-coverage", "`2`"],
+        },
+        // ---- vgps demo ----
+        Row {
+            name: "demo: output under a regular file",
+            setup: regular_file,
+            args: &["demo", "--out", "{t}/file/demo"],
+            code: 1,
+            stderr: &["{t}/file/demo/reference", "Not a directory"],
+        },
+    ]
+}
+
+/// Every file under `dir` with a hash of its bytes (directories as `None`).
+fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Option<u64>> {
+    use std::hash::{DefaultHasher, Hash, Hasher};
+    let mut out = BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).expect("read dir") {
+            let path = e.expect("entry").path();
+            if path.is_dir() {
+                out.insert(path.clone(), None);
+                stack.push(path);
+            } else {
+                let mut h = DefaultHasher::new();
+                std::fs::read(&path).expect("read").hash(&mut h);
+                out.insert(path, Some(h.finish()));
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn bad_input_matrix() {
+    let rows = rows();
+    assert!(rows.len() >= 40, "only {} rows", rows.len());
+    let fx = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures");
+    let fx = fx.to_string_lossy();
+    let mut failures = Vec::new();
+    for row in &rows {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let t = dir.path().to_string_lossy().into_owned();
+        let expand = |s: &str| s.replace("{t}", &t).replace("{fx}", &fx);
+        (row.setup)(dir.path());
+        let before = snapshot(dir.path());
+        let args: Vec<String> = row.args.iter().map(|a| expand(a)).collect();
+        let o = Command::new(env!("CARGO_BIN_EXE_vgps"))
+            .args(&args)
+            .current_dir(dir.path())
+            .output()
+            .expect("vgps runs");
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        let mut problems = Vec::new();
+        if o.status.code() != Some(row.code) {
+            problems.push(format!("exit {:?}, expected {}", o.status.code(), row.code));
+        }
+        if stderr.contains("panicked") {
+            problems.push("panicked".into());
+        }
+        for s in row.stderr {
+            if !stderr.contains(&expand(s)) {
+                problems.push(format!("stderr lacks `{}`", expand(s)));
+            }
+        }
+        let after = snapshot(dir.path());
+        for path in after.keys() {
+            let inside = path.strip_prefix(dir.path()).unwrap_or(path);
+            if inside.to_string_lossy().contains(".tmp") {
+                problems.push(format!("temporary file left: {}", path.display()));
+            }
+        }
+        if row.code != 0 && after != before {
+            let changed: Vec<_> = after
+                .iter()
+                .filter(|(p, h)| before.get(*p) != Some(h))
+                .map(|(p, _)| p.display().to_string())
+                .collect();
+            problems.push(format!("a failing run changed the directory: {changed:?}"));
+        }
+        if row.code == 2 && !o.stdout.is_empty() {
+            problems.push("an input error wrote to stdout".into());
+        }
+        if !problems.is_empty() {
+            failures.push(format!(
+                "row `{}`: {}\n  stderr: {}",
+                row.name,
+                problems.join("; "),
+                stderr.trim()
+            ));
+        }
+    }
+    println!("{} rows", rows.len());
+    assert!(
+        failures.is_empty(),
+        "{} of {} rows failed:\n{}",
+        failures.len(),
+        rows.len(),
+        failures.join("\n")
+    );
+}
