@@ -742,7 +742,10 @@ impl Problem<'_> {
                 .collect();
             let refined = refine_pose_with_sigmas(&pose, &rays, &points, &sigmas, &refine_options)
                 .map_err(|e| {
-                    let status = if e == RefineError::RankDeficient {
+                    let status = if matches!(
+                        e,
+                        RefineError::RankDeficient | RefineError::WeaklyDetermined { .. }
+                    ) {
                         FixStatus::DegenerateGeometry
                     } else {
                         FixStatus::NoSolution

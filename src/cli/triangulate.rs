@@ -168,6 +168,7 @@ pub fn status_of(error: &TriangulationError) -> &'static str {
         TriangulationError::NoParallax { .. } | TriangulationError::IllConditioned { .. } => {
             "no_parallax"
         }
+        TriangulationError::WeakParallax { .. } => "weak_parallax",
         TriangulationError::BehindRay { .. } => "behind_ray",
         TriangulationError::InvalidRay { .. } | TriangulationError::InvalidNoise { .. } => {
             "invalid_ray"

@@ -2,7 +2,8 @@
 //! first-order covariance; its inverse-variance weighted form; its online accumulator.
 
 use super::{
-    MIN_RAYS, MIN_RECIPROCAL_CONDITION, Sym3, TriangulationError, UNIT_DIRECTION_TOLERANCE,
+    MIN_PARALLAX_SIGMAS, MIN_RAYS, MIN_RECIPROCAL_CONDITION, Sym3, TriangulationError,
+    UNIT_DIRECTION_TOLERANCE,
 };
 use crate::geometry::{Ray, is_finite};
 use nalgebra::{Matrix3, Vector3};
@@ -138,7 +139,7 @@ pub fn triangulate_rays(obs: &[RayObservation]) -> Result<TriangulatedPoint, Tri
         let s = residual_variance(index, o, &reference, &q)?;
         m.add_assign(&Sym3::projector(&o.ray.direction, s));
     }
-    finish(reference, q, &a_inv, &m, obs.len(), parallax)
+    check_parallax(obs, finish(reference, q, &a_inv, &m, obs.len(), parallax)?)
 }
 
 /// The inverse-variance weighted projector sum: one re-weighting step of
@@ -211,7 +212,24 @@ pub fn triangulate_rays_weighted(
         let s = residual_variance(index, o, &reference, &q)?;
         m.add_assign(&Sym3::projector(&o.ray.direction, w * w * s));
     }
-    finish(reference, q, &a_inv, &m, obs.len(), parallax)
+    check_parallax(obs, finish(reference, q, &a_inv, &m, obs.len(), parallax)?)
+}
+
+/// Refuses a point whose parallax is below [`MIN_PARALLAX_SIGMAS`] times the largest
+/// angular σ of the observations.
+fn check_parallax(
+    obs: &[RayObservation],
+    point: TriangulatedPoint,
+) -> Result<TriangulatedPoint, TriangulationError> {
+    let sigma_rad = obs.iter().map(|o| o.sigma_ang_rad).fold(0.0, f64::max);
+    let parallax_rad = point.max_parallax_rad();
+    if sigma_rad > 0.0 && parallax_rad < MIN_PARALLAX_SIGMAS * sigma_rad {
+        return Err(TriangulationError::WeakParallax {
+            parallax_rad,
+            sigma_rad,
+        });
+    }
+    Ok(point)
 }
 
 /// Online form of [`triangulate_rays()`]: add rays one at a time in O(1) and solve at any
