@@ -136,7 +136,7 @@ fn assert_same_gnss_figures(a: &serde_json::Value, b: &serde_json::Value, what: 
 fn gpx_and_nclt_give_the_figures_of_the_nmea() {
     let dir = tempfile::tempdir().unwrap();
     let drive = dir.path().join("drive");
-    simulate(&drive, "200", false);
+    simulate(&drive, "120", false);
     let records = nmea_records(&drive);
     assert!(records.len() > 20);
     let gpx_path = dir.path().join("track.gpx");
@@ -166,21 +166,6 @@ fn gpx_and_nclt_give_the_figures_of_the_nmea() {
     assert_same_gnss_figures(&base, &from_nclt, "nclt");
     // The visual solution does not use the satellite without the prior: identical.
     assert_eq!(base["visual_vs_truth"], from_gpx["visual_vs_truth"]);
-
-    // A time offset moves the satellite track along the drive: different figures.
-    let shifted = replay(
-        &drive,
-        &dir.path().join("r3"),
-        &[
-            "--no-gnss-prior",
-            "--gnss",
-            gpx_path.to_str().unwrap(),
-            "--gnss-time-offset",
-            "-0.5",
-        ],
-    );
-    let cep = |v: &serde_json::Value| v["gnss_vs_truth"]["horizontal_m"]["cep50"].as_f64();
-    assert!(cep(&shifted).unwrap() > cep(&base).unwrap() + 0.5);
 }
 
 #[test]
@@ -204,12 +189,7 @@ fn bad_gnss_files_exit_2_naming_file_and_line() {
     assert_eq!(o.status.code(), Some(2));
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(e.contains("gps.csv:2: field `num_sats`"), "{e}");
-    let o = vgps(&[
-        "replay",
-        drive.to_str().unwrap(),
-        "--gnss-format",
-        "gpx",
-    ]);
+    let o = vgps(&["replay", drive.to_str().unwrap(), "--gnss-format", "gpx"]);
     assert_eq!(o.status.code(), Some(2), "--gnss-format needs --gnss");
 }
 
@@ -250,5 +230,8 @@ fn frames_with_unusable_images_are_counted() {
     assert_eq!(counts[4], (rows[4].len() - 2).to_string());
     assert_eq!(counts[0], "0");
     let summary = std::fs::read_to_string(out.join("summary.txt")).unwrap();
-    assert!(summary.contains("2 with unusable images (1 localized with the rest)"), "{summary}");
+    assert!(
+        summary.contains("2 with unusable images (1 localized with the rest)"),
+        "{summary}"
+    );
 }

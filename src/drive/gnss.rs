@@ -394,6 +394,9 @@ mod tests {
                 assert!((x.position.alt_m - y.position.alt_m).abs() < 1e-9);
             }
         }
-        assert_eq!(stats.no_fix, nmea.gnss().iter().filter(|r| r.fix.is_none()).count());
+        assert_eq!(
+            stats.no_fix,
+            nmea.gnss().iter().filter(|r| r.fix.is_none()).count()
+        );
     }
 }

@@ -412,7 +412,14 @@ mod tests {
             "a.gpx:5: point 1: `lat` = `x` is not a number"
         );
         let e = read_gpx(Path::new("a.gpx"), &doc("<trkpt lon=\"2\"></trkpt>\n")).unwrap_err();
-        assert!(matches!(e, GnssFileError::Gpx { line: Some(4), point: Some(0), .. }));
+        assert!(matches!(
+            e,
+            GnssFileError::Gpx {
+                line: Some(4),
+                point: Some(0),
+                ..
+            }
+        ));
         let e = read_gpx(Path::new("b.gpx"), "<gpx><trk><trkseg><trkpt").unwrap_err();
         assert!(e.to_string().starts_with("b.gpx: "), "{e}");
         let e = read_gpx(Path::new("c.gpx"), "not xml at all").unwrap_err();
@@ -428,7 +435,10 @@ mod tests {
     #[test]
     fn attribute_parser() {
         assert_eq!(attribute(" lat=\"1\" lon='2'", "lon"), Some(("2", 14, 15)));
-        assert_eq!(attribute(" xlat=\"1\" lat = \"3\"", "lat").map(|a| a.0), Some("3"));
+        assert_eq!(
+            attribute(" xlat=\"1\" lat = \"3\"", "lat").map(|a| a.0),
+            Some("3")
+        );
         assert_eq!(attribute(" lat", "lat"), None);
     }
 }

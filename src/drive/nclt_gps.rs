@@ -84,12 +84,14 @@ pub fn read_nclt_gps(
     let mut record = csv::StringRecord::new();
     let mut line = 0_u64;
     loop {
-        let more = reader.read_record(&mut record).map_err(|e| GnssFileError::Csv {
-            path: path.to_path_buf(),
-            line: e.position().map_or(line + 1, |p| p.line()),
-            field: "row".into(),
-            reason: e.to_string(),
-        })?;
+        let more = reader
+            .read_record(&mut record)
+            .map_err(|e| GnssFileError::Csv {
+                path: path.to_path_buf(),
+                line: e.position().map_or(line + 1, |p| p.line()),
+                field: "row".into(),
+                reason: e.to_string(),
+            })?;
         if !more {
             break;
         }
@@ -139,9 +141,12 @@ enum Row {
 
 fn number(record: &csv::StringRecord, k: usize) -> Result<f64, (&'static str, String)> {
     let field = COLUMNS[k];
-    let text = record
-        .get(k)
-        .ok_or_else(|| (field, format!("missing (a row has at least {MIN_COLUMNS} fields)")))?;
+    let text = record.get(k).ok_or_else(|| {
+        (
+            field,
+            format!("missing (a row has at least {MIN_COLUMNS} fields)"),
+        )
+    })?;
     text.parse::<f64>()
         .map_err(|_| (field, format!("`{text}` is not a number")))
 }
@@ -252,10 +257,18 @@ mod tests {
         let records = random_records(200, 11);
         let (back, stats) = read_nclt_gps(Path::new("gps.csv"), &to_nclt(&records)).unwrap();
         assert_eq!(back.len(), records.len());
-        assert_eq!(stats.no_fix, records.iter().filter(|r| r.fix.is_none()).count());
+        assert_eq!(
+            stats.no_fix,
+            records.iter().filter(|r| r.fix.is_none()).count()
+        );
         assert_eq!(stats.fixes + stats.no_fix, stats.entries);
         for (a, b) in records.iter().zip(&back) {
-            assert!((a.time_s - b.time_s).abs() < 1e-6, "{} {}", a.time_s, b.time_s);
+            assert!(
+                (a.time_s - b.time_s).abs() < 1e-6,
+                "{} {}",
+                a.time_s,
+                b.time_s
+            );
             match (a.fix, b.fix) {
                 (Some(x), Some(y)) => {
                     assert!((x.position.lat_deg - y.position.lat_deg).abs() < 1e-9);
