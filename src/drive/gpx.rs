@@ -394,7 +394,7 @@ mod tests {
         assert_eq!(times, [t0 + 5.0 - 3600.0, t0 + 1.0, t0 + 6.0, t0 + 7.0]);
         assert_eq!(records[3].fix.unwrap().position.alt_m, 0.0);
         let first = records[0].fix.unwrap();
-        assert_eq!(first.position.lon_deg, -180.0);
+        assert_eq!(first.position.lon_deg.abs(), 180.0);
         assert_eq!(first.position.alt_m, 7.0 - 30.0);
         assert_eq!(records[1].fix.unwrap().quality, GPX_QUALITY_DGPS);
         assert!(records[2].fix.is_none());
