@@ -77,6 +77,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             } else {
                 Some(frame.try_to_geodetic(&(p + gnss_err))?)
             },
+            unusable_images: None,
             truth: Some(Truth {
                 geodetic: truth,
                 heading_deg: heading,

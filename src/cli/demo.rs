@@ -60,6 +60,7 @@ pub fn run(args: &DemoArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
         no_surrogates: false,
         no_gnss_prior: false,
         from_images: false,
+        gnss: Default::default(),
     };
     super::replay::run(&replay, out, err)?;
     if args.format == OutputFormat::Text {

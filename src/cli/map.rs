@@ -146,6 +146,9 @@ pub struct MapArgs {
     /// Unknown keys in drive.json are an error (default: a warning).
     #[arg(long)]
     pub strict: bool,
+    /// Satellite GPS from another file (survey mode needs a heading: NMEA with `HDT`).
+    #[command(flatten)]
+    pub gnss: super::gnss_input::GnssInputArgs,
 }
 
 fn parse_non_negative(text: &str) -> Result<f64, String> {
@@ -259,8 +262,9 @@ pub fn run(args: &MapArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<(
     } else {
         Strictness::Lenient
     };
-    let drive =
+    let mut drive =
         Drive::open(&args.drive, strictness).map_err(|e| CliError::Calibration(e.to_string()))?;
+    args.gnss.apply(&mut drive, err)?;
     for w in drive.warnings() {
         let _ = writeln!(err, "vgps: warning: {w}");
     }

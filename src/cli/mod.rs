@@ -12,6 +12,7 @@ pub mod args;
 pub mod calib;
 pub mod demo;
 pub mod detect;
+pub mod gnss_input;
 pub mod locate;
 pub mod map;
 pub mod replay;

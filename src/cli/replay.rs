@@ -22,6 +22,8 @@ use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+/// The status of a frame none of whose images could be used.
+pub const BAD_IMAGE_STATUS: &str = "bad_image";
 /// Frames decoded and detected together before they are localized in order.
 pub const BATCH_FRAMES: usize = 64;
 /// Satellite GPS is interpolated between two epochs with a fix at most this far apart
@@ -70,15 +72,33 @@ pub struct ReplayArgs {
     /// Detect lamps in the images even when the drive has `detections.csv`.
     #[arg(long)]
     pub from_images: bool,
+    /// Satellite GPS from another file.
+    #[command(flatten)]
+    pub gnss: super::gnss_input::GnssInputArgs,
 }
 
-/// What the detections of one frame came from, or why there are none.
+/// The detections of one frame, or why there are none; `unusable_images` counts the
+/// frame's images that could not be used (`None`: the detections came from a file).
 enum FrameDetections {
-    Ok(Vec<crate::drive::Detection>),
-    /// Detections of the readable images of a frame some of whose images are unusable
-    /// (the problems, for a warning).
-    Partial(Vec<crate::drive::Detection>, String),
-    Bad(String),
+    Ok {
+        detections: Vec<crate::drive::Detection>,
+        unusable_images: Option<u32>,
+        problems: Option<String>,
+    },
+    Bad {
+        message: String,
+        unusable_images: Option<u32>,
+    },
+}
+
+impl FrameDetections {
+    fn from_file(detections: Vec<crate::drive::Detection>) -> Self {
+        Self::Ok {
+            detections,
+            unusable_images: None,
+            problems: None,
+        }
+    }
 }
 
 /// Runs `vgps replay`.
@@ -99,8 +119,9 @@ pub fn run(args: &ReplayArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resul
     } else {
         Strictness::Lenient
     };
-    let drive =
+    let mut drive =
         Drive::open(&args.drive, strictness).map_err(|e| CliError::Calibration(e.to_string()))?;
+    args.gnss.apply(&mut drive, err)?;
     for w in drive.warnings() {
         let _ = writeln!(err, "vgps: warning: {w}");
     }
@@ -161,11 +182,13 @@ pub fn run(args: &ReplayArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resul
             batch
                 .iter()
                 .map(|f| match drive.status(f.frame) {
-                    FrameStatus::Ok => FrameDetections::Ok(drive.detections(f.frame).to_vec()),
+                    FrameStatus::Ok => {
+                        FrameDetections::from_file(drive.detections(f.frame).to_vec())
+                    }
                     FrameStatus::BadRows(messages) => {
                         // The frame's readable rows are still used; the bad rows are reported.
                         let _ = writeln!(err, "vgps: warning: {}", messages.join("; "));
-                        FrameDetections::Ok(drive.detections(f.frame).to_vec())
+                        FrameDetections::from_file(drive.detections(f.frame).to_vec())
                     }
                 })
                 .collect()
@@ -176,15 +199,27 @@ pub fn run(args: &ReplayArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resul
                 geodetic: t.position,
                 heading_deg: crate::simulate::heading_deg(&t.enu_from_rig),
             });
-            if let FrameDetections::Partial(_, message) = &d {
-                let _ = writeln!(err, "vgps: frame {}: {message}", f.frame);
-            }
-            let (status, visual) = match d {
-                FrameDetections::Bad(message) => {
+            let (status, visual, unusable_images) = match d {
+                FrameDetections::Bad {
+                    message,
+                    unusable_images,
+                } => {
                     let _ = writeln!(err, "vgps: frame {}: {message}", f.frame);
-                    ("bad_image".to_string(), None)
+                    (BAD_IMAGE_STATUS.to_string(), None, unusable_images)
                 }
-                FrameDetections::Ok(dets) | FrameDetections::Partial(dets, _) => {
+                FrameDetections::Ok {
+                    detections: dets,
+                    unusable_images,
+                    problems,
+                } => {
+                    if let Some(p) = problems {
+                        let _ = writeln!(
+                            err,
+                            "vgps: warning: frame {}: {} image(s) unusable, localized with the others: {p}",
+                            f.frame,
+                            unusable_images.unwrap_or(0)
+                        );
+                    }
                     let prior = if args.no_gnss_prior {
                         None
                     } else {
@@ -192,7 +227,11 @@ pub fn run(args: &ReplayArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resul
                     };
                     let fix =
                         localizer.process(&Frame::from_detections(f.time_s, &dets, &map, prior));
-                    (fix.status.as_str().to_string(), visual_of(&fix))
+                    (
+                        fix.status.as_str().to_string(),
+                        visual_of(&fix),
+                        unusable_images,
+                    )
                 }
             };
             records.push(FrameRecord {
@@ -201,6 +240,7 @@ pub fn run(args: &ReplayArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resul
                 status,
                 visual,
                 gnss,
+                unusable_images,
                 truth,
             });
         }
@@ -320,16 +360,19 @@ fn detect_batch(
                         .map(|f| detect_frame(drive, f, detector))
                         .collect::<Vec<_>>()
                 });
-                (frames.len(), handle)
+                (handle, frames.len())
             })
             .collect();
         handles
             .into_iter()
-            .flat_map(|(n, h)| {
-                // One record per frame even when a thread failed, so frames stay aligned.
+            .flat_map(|(h, n)| {
+                // One result per frame even if the thread failed, so frames stay aligned.
                 h.join().unwrap_or_else(|_| {
                     (0..n)
-                        .map(|_| FrameDetections::Bad("detection thread failed".into()))
+                        .map(|_| FrameDetections::Bad {
+                            message: "detection thread failed".into(),
+                            unusable_images: None,
+                        })
                         .collect()
                 })
             })
@@ -344,17 +387,25 @@ fn detect_frame(
     detector: &LampDetector,
 ) -> FrameDetections {
     if frame.images.iter().all(Option::is_none) {
-        return FrameDetections::Bad("no images and no detections".into());
+        return FrameDetections::Bad {
+            message: "no images and no detections".into(),
+            unusable_images: Some(0),
+        };
     }
     let result = crate::imaging::detect_frame_images(drive.dir(), frame, drive.rig(), detector);
-    let problems = result.problems.len();
-    if problems == 0 {
-        FrameDetections::Ok(result.detections)
-    } else if !result.detections.is_empty() && problems < frame.images.len() {
-        // A frame with some unreadable images keeps the detections of the others.
-        let text = result.problem_text();
-        FrameDetections::Partial(result.detections, text)
+    let unusable_images = Some(u32::try_from(result.problems.len()).unwrap_or(u32::MAX));
+    if result.is_unusable() {
+        FrameDetections::Bad {
+            message: result.problem_text(),
+            unusable_images,
+        }
     } else {
-        FrameDetections::Bad(result.problem_text())
+        // A frame with some unusable images is localized with the others (even when they
+        // show no lamp: the localizer then reports the frame's status), and counted.
+        FrameDetections::Ok {
+            problems: (!result.problems.is_empty()).then(|| result.problem_text()),
+            detections: result.detections,
+            unusable_images,
+        }
     }
 }

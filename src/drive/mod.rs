@@ -26,6 +26,9 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod gnss;
+pub mod gpx;
+pub mod nclt_gps;
 pub mod nmea;
 mod tables;
 
@@ -95,6 +98,9 @@ pub enum DriveError {
     /// The calibration cannot be loaded (names the file and the location).
     #[error(transparent)]
     Calibration(#[from] LoadError),
+    /// A GPX or NCLT satellite GPS file is invalid (names the file and the line).
+    #[error(transparent)]
+    Gnss(#[from] gnss::GnssFileError),
     /// A file cannot be written.
     #[error("{}: cannot write the file: {source}", path.display())]
     Write {
@@ -272,6 +278,7 @@ pub struct Drive {
     orphans: Vec<String>,
     gnss: Vec<GnssRecord>,
     nmea_stats: Option<NmeaStats>,
+    gnss_stats: Option<gnss::GnssFileStats>,
     truth: Vec<TruthRecord>,
     warnings: Vec<String>,
 }
@@ -315,6 +322,7 @@ impl Drive {
             orphans: Vec::new(),
             gnss: Vec::new(),
             nmea_stats: None,
+            gnss_stats: None,
             truth: Vec::new(),
             warnings,
         };
@@ -324,6 +332,16 @@ impl Drive {
             drive.index_detections(rows);
         }
         if let Some(name) = &manifest.gnss {
+            let path = dir.join(name);
+            let text = read_text(&path)?;
+            let format = gnss::GnssFormat::detect(&path, &text);
+            if format != gnss::GnssFormat::Nmea {
+                drive.replace_gnss(gnss::read_gnss_file(&path, Some(format), 0.0)?);
+            }
+        }
+        if let Some(name) = &manifest.gnss
+            && drive.gnss_stats.is_none()
+        {
             let (records, stats) = nmea::read_nmea(&read_text(&dir.join(name))?);
             if stats.skipped() > 0 {
                 drive.warnings.push(format!(
@@ -338,6 +356,7 @@ impl Drive {
                     stats.invalid
                 ));
             }
+            drive.gnss_stats = Some(gnss::GnssFileStats::from_nmea(&stats, &records));
             drive.gnss = records;
             drive.nmea_stats = Some(stats);
         }
@@ -440,6 +459,23 @@ impl Drive {
         let a = self.gnss.partition_point(|r| r.time_s <= t0);
         let b = self.gnss.partition_point(|r| r.time_s <= t1);
         &self.gnss[a..b.max(a)]
+    }
+
+    /// Replaces the drive's satellite GPS by `log` (a file read with
+    /// [`gnss::read_gnss_file`], e.g. `vgps replay --gnss FILE`); its warning, if any, is
+    /// added to [`Drive::warnings`].
+    pub fn replace_gnss(&mut self, log: gnss::GnssLog) {
+        if let Some(w) = log.stats.warning(&log.path) {
+            self.warnings.push(w);
+        }
+        self.gnss = log.records;
+        self.nmea_stats = log.nmea;
+        self.gnss_stats = Some(log.stats);
+    }
+
+    /// What the GNSS reader read and skipped, in any format (`None` without a GNSS file).
+    pub fn gnss_stats(&self) -> Option<&gnss::GnssFileStats> {
+        self.gnss_stats.as_ref()
     }
 
     /// What the NMEA reader skipped (`None` without a GNSS file).

@@ -36,6 +36,11 @@ pub const TRUTH_COLUMNS: [&str; 6] = [
     "err_heading_deg",
 ];
 
+/// The column appended (last) when any record's detections came from the images
+/// ([`FrameRecord::unusable_images`] is `Some`): the number of the frame's images that could
+/// not be used.
+pub const IMAGE_COLUMNS: [&str; 1] = ["unusable_images"];
+
 /// Decimals of latitudes and longitudes (1e-9° ≈ 0.1 mm).
 pub(crate) const LATLON_DECIMALS: usize = 9;
 /// Decimals of metres (millimetres).
@@ -68,7 +73,8 @@ fn push_geodetic(row: &mut Vec<String>, g: Option<&Geodetic>) {
 }
 
 /// `fixes.csv`: a header line ([`FIXES_COLUMNS`], then [`TRUTH_COLUMNS`] when any record
-/// has a truth) and one row per record. Missing values are empty fields; latitudes and
+/// has a truth, then [`IMAGE_COLUMNS`] when any record came from images) and one row per
+/// record. Missing values are empty fields; latitudes and
 /// longitudes have 9 decimals, metres 3, degrees 4, times 6. Lines end in `\n`; the status
 /// is quoted only if it contains a comma, quote or newline.
 pub fn fixes_csv(drive: &DriveInfo, records: &[FrameRecord]) -> String {
@@ -80,6 +86,10 @@ pub fn fixes_csv(drive: &DriveInfo, records: &[FrameRecord]) -> String {
     let mut header: Vec<&str> = FIXES_COLUMNS.to_vec();
     if with_truth {
         header.extend(TRUTH_COLUMNS);
+    }
+    let with_images = records.iter().any(|r| r.unusable_images.is_some());
+    if with_images {
+        header.extend(IMAGE_COLUMNS);
     }
     let mut rows: Vec<Vec<String>> = vec![header.iter().map(|s| s.to_string()).collect()];
     for (r, g) in records.iter().zip(&geom) {
@@ -113,6 +123,9 @@ pub fn fixes_csv(drive: &DriveInfo, records: &[FrameRecord]) -> String {
             row.push(fmt_opt(g.visual_vs_truth.map(|d| d.h), METRE_DECIMALS));
             row.push(fmt_opt(g.visual_vs_truth.map(|d| d.v), METRE_DECIMALS));
             row.push(fmt_opt(g.heading_err_deg, ANGLE_DECIMALS));
+        }
+        if with_images {
+            row.push(r.unusable_images.map(|n| n.to_string()).unwrap_or_default());
         }
         rows.push(row);
     }

@@ -36,6 +36,7 @@
 //!         status: "no_fix".into(),
 //!         visual: None,
 //!         gnss: Some(origin),
+//!         unusable_images: None,
 //!         truth: Some(Truth { geodetic: origin, heading_deg: 0.0 }),
 //!     })
 //!     .collect();
@@ -60,7 +61,7 @@ mod time;
 mod tracks;
 
 pub use atomic::write_atomic;
-pub use csv_out::{FIXES_COLUMNS, TRUTH_COLUMNS, fixes_csv};
+pub use csv_out::{FIXES_COLUMNS, IMAGE_COLUMNS, TRUTH_COLUMNS, fixes_csv};
 pub use html::report_html;
 pub use nmea::{
     GGA_QUALITY_ESTIMATED, GGA_QUALITY_FIX, MAX_VELOCITY_GAP_S, NMEA_TALKER, fixes_nmea,
@@ -69,7 +70,7 @@ pub use nmea::{
 pub use plot::{PLOT_HEIGHT_PX, PLOT_WIDTH_PX, plot_error_png, plot_track_png};
 pub use stats::{
     BlackoutSection, Comparison, CovarianceConsistency, DriftStretch, HorizontalStats,
-    MIN_DRIFT_DISTANCE_M, Report, SurrogateDrift, quantile_nearest_rank,
+    ImageAccounting, MIN_DRIFT_DISTANCE_M, Report, SurrogateDrift, quantile_nearest_rank,
 };
 pub use text::summary_table;
 pub use time::utc_iso8601;
@@ -152,6 +153,10 @@ pub struct FrameRecord {
     /// The satellite position interpolated at the frame time; `None` during a blackout or
     /// a gap of the satellite log.
     pub gnss: Option<Geodetic>,
+    /// How many of the frame's images could not be used (missing, corrupt, wrong size, …)
+    /// when its detections came from the images; `None` when they came from a detections
+    /// file. A frame with some unusable images is still localized with the others.
+    pub unusable_images: Option<u32>,
     /// The ground truth, if the drive has one.
     pub truth: Option<Truth>,
 }

@@ -154,6 +154,20 @@ pub struct SurrogateDrift {
     pub stretches: Vec<DriftStretch>,
 }
 
+/// The accounting of the frames whose detections came from the images.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ImageAccounting {
+    /// Frames whose detections came from their images.
+    pub frames: u64,
+    /// Of those, frames with at least one unusable image (missing, corrupt, wrong size,
+    /// detector failure), whatever their status.
+    pub frames_with_unusable_images: u64,
+    /// Of those, frames localized with the images that could be used (some usable).
+    pub frames_partially_usable: u64,
+    /// Unusable images over all frames.
+    pub unusable_images: u64,
+}
+
 /// The statistics of a replay, serialized as `report.json` ([`Report::to_json`]).
 ///
 /// Every field is documented key by key in `docs/replay-report.md`.
@@ -194,6 +208,8 @@ pub struct Report {
     pub covariance_consistency: Option<CovarianceConsistency>,
     /// Drift on surrogate-only stretches; `null` when the drive has no surrogate-only fix.
     pub surrogate_drift: Option<SurrogateDrift>,
+    /// Image accounting; `null` when no frame's detections came from its images.
+    pub images: Option<ImageAccounting>,
 }
 
 fn rate(k: u64, n: u64) -> Option<f64> {
@@ -280,6 +296,7 @@ impl Report {
             heading_error_median_deg: quantile_nearest_rank(&heading_abs, 0.5),
             covariance_consistency: covariance_consistency(records, &geom),
             surrogate_drift: surrogate_drift(records, &geom),
+            images: image_accounting(records),
         }
     }
 
@@ -295,6 +312,26 @@ impl Report {
             Err(e) => format!("{{\"error\": \"{e}\"}}\n"),
         }
     }
+}
+
+/// A frame whose images were all unusable has this status (and is not "partially usable").
+const BAD_IMAGE_STATUS: &str = "bad_image";
+
+fn image_accounting(records: &[FrameRecord]) -> Option<ImageAccounting> {
+    let from_images: Vec<(u32, &str)> = records
+        .iter()
+        .filter_map(|r| r.unusable_images.map(|n| (n, r.status.as_str())))
+        .collect();
+    if from_images.is_empty() {
+        return None;
+    }
+    let with = from_images.iter().filter(|(n, _)| *n > 0);
+    Some(ImageAccounting {
+        frames: from_images.len() as u64,
+        frames_with_unusable_images: with.clone().count() as u64,
+        frames_partially_usable: with.filter(|(_, s)| *s != BAD_IMAGE_STATUS).count() as u64,
+        unusable_images: from_images.iter().map(|(n, _)| u64::from(*n)).sum(),
+    })
 }
 
 fn covariance_consistency(

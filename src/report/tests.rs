@@ -53,6 +53,7 @@ fn known_records() -> Vec<FrameRecord> {
                 status: "ok".into(),
                 visual: Some(fix(at(x + (i + 1) as f64, 0.0, 2.0), 1.0, 5, 0)),
                 gnss: (!gnss_missing).then(|| at(x, 0.0, 0.0)),
+                unusable_images: None,
                 truth: Some(Truth {
                     geodetic: at(x, 0.0, 0.0),
                     heading_deg: 359.0 - i as f64,
@@ -138,6 +139,7 @@ fn drift_records() -> Vec<FrameRecord> {
                 status: if visual.is_some() { "ok" } else { "no_fix" }.into(),
                 visual,
                 gnss: None,
+                unusable_images: None,
                 truth: Some(Truth {
                     geodetic: at(x, 0.0, 0.0),
                     heading_deg: 90.0,

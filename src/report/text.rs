@@ -98,6 +98,13 @@ pub fn summary_table(report: &Report) -> String {
         "heading error median: {} deg",
         opt(report.heading_error_median_deg, 3)
     );
+    if let Some(i) = &report.images {
+        let _ = writeln!(
+            s,
+            "images: {} frames from images, {} with unusable images ({} localized with the rest), {} unusable images",
+            i.frames, i.frames_with_unusable_images, i.frames_partially_usable, i.unusable_images
+        );
+    }
     if let Some(c) = &report.covariance_consistency {
         let _ = writeln!(
             s,
