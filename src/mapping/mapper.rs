@@ -101,6 +101,9 @@ struct Track {
     /// The last [`refine_landmark`] of the track and the number of rays it used (rays are
     /// only ever appended, so it stays valid until the track gains a ray).
     refined: Option<(usize, Option<TriangulatedPoint>)>,
+    /// The direction making the largest angle with the first ray's, and its cosine (as
+    /// [`refine_landmark`] finds it, so the parallax criterion is checked before refining).
+    far: (f64, Vector3<f64>),
 }
 
 impl Track {
@@ -126,6 +129,7 @@ impl Track {
             last_seen_s: t,
             floor_sum: ray.pose_covariance.fixed_view::<3, 3>(0, 0).into_owned(),
             refined: None,
+            far: (1.0, ray.ray.direction),
         })
     }
 
@@ -141,6 +145,12 @@ impl Track {
     ) -> Result<(), TriangulationError> {
         self.sum.add(&eff)?;
         self.floor_sum += ray.pose_covariance.fixed_view::<3, 3>(0, 0);
+        if let Some(first) = self.rays.first() {
+            let cos = ray.ray.direction.dot(&first.ray.direction);
+            if cos < self.far.0 {
+                self.far = (cos, ray.ray.direction);
+            }
+        }
         self.rays.push(ray);
         self.effective.push(eff);
         self.spreads.push(PoseSpread::of(&ray));
@@ -479,6 +489,13 @@ impl LandmarkMapper {
                 if (running.point - position_in_world).norm() > radius_m {
                     return None;
                 }
+                // The parallax criterion does not need the refinement (same rays, same
+                // formula as `TriangulatedPoint::max_parallax_rad`).
+                let u0 = t.rays.first()?.ray.direction;
+                let parallax = u0.cross(&t.far.1).norm().atan2(u0.dot(&t.far.1));
+                if parallax < c.min_parallax_rad {
+                    return None;
+                }
                 let n_rays = t.rays.len();
                 let e = match &t.refined {
                     Some((n, e)) if *n == n_rays => (*e)?,
@@ -539,6 +556,8 @@ struct PoseSpread {
     pos: f64,
     /// `√tr Σ_θθ` (radians).
     rot: f64,
+    /// Distance of the camera from the rig origin (metres).
+    offset: f64,
 }
 
 impl PoseSpread {
@@ -547,6 +566,7 @@ impl PoseSpread {
         Self {
             pos: (c[(0, 0)] + c[(1, 1)] + c[(2, 2)]).max(0.0).sqrt(),
             rot: (c[(3, 3)] + c[(4, 4)] + c[(5, 5)]).max(0.0).sqrt(),
+            offset: (ray.ray.origin - ray.rig_origin).norm(),
         }
     }
 
@@ -658,26 +678,28 @@ fn gate_two_rays(
     let pa = a0 + u * s;
     let pb = b0 + v * t;
     let g = pa - pb;
-    let gap = g.norm();
-    if gap == 0.0 {
+    let gap2 = g.norm_squared();
+    if gap2 == 0.0 {
         return Some(0.0);
     }
     // Cheap early rejection: an upper bound on each ray's residual variance along any
     // direction, `(√tr Σ_pp + r·√tr Σ_θθ)² + d²σ²` (r: lever arm from the rig, d: range),
     // gives a lower bound on `m`; when even that exceeds the gate, the exact variance is not
     // needed.
-    let bound = |ray: &MapRay, spread: &PoseSpread, p: &Vector3<f64>| {
-        let lever = (p - ray.rig_origin).norm();
-        let d = (p - ray.ray.origin).norm();
-        spread.variance_bound(lever, d, ray.sigma_rad)
+    // The closest points are `near + s` and `near + t` from the cameras (unit directions),
+    // and the lever from the rig origin is at most that plus the camera offset: no square
+    // root is needed for the bound.
+    let bound = |ray: &MapRay, spread: &PoseSpread, d: f64| {
+        spread.variance_bound(d + spread.offset, d, ray.sigma_rad)
     };
-    let var_bound = bound(a, a_spread, &pa) + bound(b, b_spread, &pb);
-    if gap * gap > opts.gate_chi2_1dof * var_bound {
-        let m = gap * gap / var_bound;
+    let var_bound = bound(a, a_spread, near + s) + bound(b, b_spread, near + t);
+    if gap2 > opts.gate_chi2_1dof * var_bound {
+        let m = gap2 / var_bound;
         return m.is_finite().then_some(m);
     }
+    let gap = gap2.sqrt();
     let gh = g / gap;
     let var = ray_residual_variance(a, &pa, &gh) + ray_residual_variance(b, &pb, &gh);
-    let m = gap * gap / var;
+    let m = gap2 / var;
     m.is_finite().then_some(m)
 }
