@@ -331,8 +331,7 @@ impl LandmarkMapper {
                             &spreads[k],
                             opts.max_range_m,
                             opts.gate_chi2_2dof,
-                        )
-                            && m <= opts.gate_chi2_2dof
+                        ) && m <= opts.gate_chi2_2dof
                         {
                             candidates.push((0, m, k, ti));
                         }
