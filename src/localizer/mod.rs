@@ -393,6 +393,8 @@ pub struct Localizer {
     state: Option<MotionState>,
     mapper: LandmarkMapper,
     surrogates: Vec<NearbySurrogate>,
+    /// Per surrogate, its candidate without position check (computed once per refresh).
+    surrogate_candidates: Vec<Candidate>,
     frames_since_refresh: usize,
     last_cold_start_s: Option<f64>,
     neighbours: Vec<usize>,
@@ -442,6 +444,7 @@ impl Localizer {
             state: None,
             mapper,
             surrogates: Vec::new(),
+            surrogate_candidates: Vec::new(),
             frames_since_refresh: 0,
             last_cold_start_s: None,
             neighbours: Vec::new(),
@@ -686,22 +689,11 @@ impl Localizer {
             })
             .collect();
         if self.options.surrogates {
-            for s in &self.surrogates {
-                let l = &s.landmark;
-                if (l.position_enu - position).norm() <= range {
-                    // Gates and weights use the surrogate's own covariance (what varies
-                    // between surrogates); the shared part only widens the fix's covariance.
-                    let common = l.covariance + s.pose_floor_covariance;
-                    let worst = l.covariance.symmetric_eigenvalues().max().max(0.0).sqrt();
-                    out.push(Candidate {
-                        position: l.position_enu,
-                        sigma_m: worst,
-                        class: l.class,
-                        source: CandidateSource::Surrogate(l.id),
-                        common_covariance: Some(common),
-                    });
-                }
-            }
+            out.extend(
+                self.surrogate_candidates
+                    .iter()
+                    .filter(|c| (c.position - position).norm() <= range),
+            );
         }
         out
     }
@@ -886,6 +878,22 @@ impl Localizer {
             self.surrogates = self
                 .mapper
                 .surrogates_near(&t.world_from_rig.translation.vector, radius);
+            self.surrogate_candidates = self
+                .surrogates
+                .iter()
+                .map(|s| {
+                    let l = &s.landmark;
+                    // Gates and weights use the surrogate's own covariance (what varies
+                    // between surrogates); the shared part only widens the fix's covariance.
+                    Candidate {
+                        position: l.position_enu,
+                        sigma_m: l.covariance.symmetric_eigenvalues().max().max(0.0).sqrt(),
+                        class: l.class,
+                        source: CandidateSource::Surrogate(l.id),
+                        common_covariance: Some(l.covariance + s.pose_floor_covariance),
+                    }
+                })
+                .collect();
         }
     }
 }

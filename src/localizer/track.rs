@@ -82,8 +82,15 @@ fn associate(
 ) -> Vec<Option<usize>> {
     pairs.clear();
     let rig_from_world = pose.inverse();
+    // z² = sin²/σ² with sin² = |u × v|²/|v|² and σ² from `predicted_sigma`, rearranged so
+    // that the gate needs neither a square root nor a division:
+    // |u × v|² ≤ g² (|v|² (σ_obs² + σ_rot²) + σ_pos² + σ_c²).
+    let gate2 = gate_sigmas * gate_sigmas;
+    let rot2 = guess.rotation_rad * guess.rotation_rad;
+    let pos2 = guess.position_m * guess.position_m;
     for (ci, c) in candidates.iter().enumerate() {
         let in_rig = rig_from_world * nalgebra::Point3::from(c.position);
+        let lateral2 = pos2 + c.sigma_m * c.sigma_m;
         for (oi, o) in observations.iter().enumerate() {
             if let (Some(a), Some(b)) = (o.class, c.class)
                 && a != b
@@ -91,15 +98,20 @@ fn associate(
                 continue;
             }
             let v = in_rig.coords - o.ray.origin;
-            let range = v.norm();
-            if !range.is_finite() || range <= f64::EPSILON {
+            let range2 = v.norm_squared();
+            if !range2.is_finite() || range2 <= f64::EPSILON * f64::EPSILON {
                 continue;
             }
-            let cos = o.ray.direction.dot(&v) / range;
-            if cos <= 0.0 {
+            if o.ray.direction.dot(&v) <= 0.0 {
                 continue;
             }
-            let sin = o.ray.direction.cross(&v).norm() / range;
+            let cross2 = o.ray.direction.cross(&v).norm_squared();
+            let var = range2 * (o.sigma_rad * o.sigma_rad + rot2) + lateral2;
+            if cross2 > gate2 * var {
+                continue;
+            }
+            let range = range2.sqrt();
+            let sin = cross2.sqrt() / range;
             let sigma = predicted_sigma(o, c, range, guess);
             let z = sin / sigma;
             if z <= gate_sigmas {

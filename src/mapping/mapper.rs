@@ -1,6 +1,6 @@
 //! The online landmark mapper: association, track initialisation, refinement, pruning.
 
-use super::refine::{MapRay, ray_residual_covariance, refine_landmark};
+use super::refine::{MapRay, ray_residual_tangent, ray_residual_variance, refine_landmark};
 use super::{
     GATE_CHI2_1DOF, GATE_CHI2_2DOF, MAX_INIT_RELATIVE_SIGMA, MAX_RANGE_M, MIN_INIT_PARALLAX_RAD,
     MIN_LANDMARK_RAYS, MIN_RANGE_M, MappedLandmark, MappingError, MappingFrame, SurrogateCriteria,
@@ -89,10 +89,21 @@ struct Track {
     rays: Vec<MapRay>,
     /// The isotropic noise approximation of each ray (for gating).
     effective: Vec<RayObservation>,
+    /// The [`PoseSpread`] of each ray (for the cheap gate bounds).
+    spreads: Vec<PoseSpread>,
     sources: Vec<Source>,
     sum: RaySum,
     estimate: Option<TriangulatedPoint>,
     last_seen_s: f64,
+    /// Running sum of the rays' pose position covariances (the pose-correlation floor of
+    /// [`NearbySurrogate`] is its mean).
+    floor_sum: Matrix3<f64>,
+    /// The last [`refine_landmark`] of the track and the number of rays it used (rays are
+    /// only ever appended, so it stays valid until the track gains a ray).
+    refined: Option<(usize, Option<TriangulatedPoint>)>,
+    /// The direction making the largest angle with the first ray's, and its cosine (as
+    /// [`refine_landmark`] finds it, so the parallax criterion is checked before refining).
+    far: (f64, Vector3<f64>),
 }
 
 impl Track {
@@ -111,10 +122,14 @@ impl Track {
             class,
             rays: vec![ray],
             effective: vec![eff],
+            spreads: vec![PoseSpread::of(&ray)],
             sources: vec![source],
             sum,
             estimate: None,
             last_seen_s: t,
+            floor_sum: ray.pose_covariance.fixed_view::<3, 3>(0, 0).into_owned(),
+            refined: None,
+            far: (1.0, ray.ray.direction),
         })
     }
 
@@ -129,8 +144,16 @@ impl Track {
         max_range_m: f64,
     ) -> Result<(), TriangulationError> {
         self.sum.add(&eff)?;
+        self.floor_sum += ray.pose_covariance.fixed_view::<3, 3>(0, 0);
+        if let Some(first) = self.rays.first() {
+            let cos = ray.ray.direction.dot(&first.ray.direction);
+            if cos < self.far.0 {
+                self.far = (cos, ray.ray.direction);
+            }
+        }
         self.rays.push(ray);
         self.effective.push(eff);
+        self.spreads.push(PoseSpread::of(&ray));
         self.sources.push(source);
         self.last_seen_s = t;
         if self.estimate.is_some() {
@@ -286,6 +309,7 @@ impl LandmarkMapper {
             .collect();
         let effective: Vec<RayObservation> =
             rays.iter().map(MapRay::effective_observation).collect();
+        let spreads: Vec<PoseSpread> = rays.iter().map(PoseSpread::of).collect();
         let opts = self.options;
         // (priority: 0 = track with an estimate, 1 = tentative; m; observation; track)
         let mut candidates: Vec<(u8, f64, usize, usize)> = Vec::new();
@@ -295,13 +319,19 @@ impl LandmarkMapper {
                     if (est.point - rig_origin).norm() > opts.max_range_m * 1.5 {
                         continue;
                     }
+                    let est_trace = est.covariance.trace().max(0.0);
                     for (k, (o, ray)) in frame.observations.iter().zip(&rays).enumerate() {
                         if !classes_match(track.class, o.class) {
                             continue;
                         }
-                        if let Some(m) =
-                            gate_estimate(est, ray, opts.max_range_m, opts.gate_chi2_2dof)
-                            && m <= opts.gate_chi2_2dof
+                        if let Some(m) = gate_estimate(
+                            est,
+                            est_trace,
+                            ray,
+                            &spreads[k],
+                            opts.max_range_m,
+                            opts.gate_chi2_2dof,
+                        ) && m <= opts.gate_chi2_2dof
                         {
                             candidates.push((0, m, k, ti));
                         }
@@ -322,8 +352,12 @@ impl LandmarkMapper {
                         let start = track.rays.len().saturating_sub(MAX_PAIRWISE_RAYS);
                         // Most recent first; stop at the first ray that fails the gate.
                         let mut worst = Some(0.0f64);
-                        for r in track.rays[start..].iter().rev() {
-                            match gate_two_rays(r, ray, &opts) {
+                        for (r, rs) in track.rays[start..]
+                            .iter()
+                            .zip(&track.spreads[start..])
+                            .rev()
+                        {
+                            match gate_two_rays(r, rs, ray, &spreads[k], &opts) {
                                 Some(m) if m <= opts.gate_chi2_1dof => {
                                     worst = worst.map(|w| w.max(m));
                                 }
@@ -435,39 +469,53 @@ impl LandmarkMapper {
             .collect()
     }
 
-    /// The surrogates within `radius_m` of `position_in_world`, from each track's running
-    /// estimate (no re-refinement: cheap enough to call every frame), with the
-    /// pose-correlation floor of each (see [`NearbySurrogate`]).
+    /// The surrogates within `radius_m` of `position_in_world` (selected by each track's
+    /// running estimate, then refined by [`refine_landmark`]), with the pose-correlation
+    /// floor of each (see [`NearbySurrogate`]). A track's refinement is kept until it gains a
+    /// ray, so calling this every few frames only refines the tracks that changed.
     pub fn surrogates_near(
-        &self,
+        &mut self,
         position_in_world: &Vector3<f64>,
         radius_m: f64,
     ) -> Vec<NearbySurrogate> {
         let c = self.options.surrogate;
+        let min_rays = c.min_rays.max(self.options.min_landmark_rays);
         self.tracks
-            .iter()
-            .filter(|t| t.rays.len() >= c.min_rays.max(self.options.min_landmark_rays))
+            .iter_mut()
+            .filter(|t| t.rays.len() >= min_rays)
             .filter_map(|t| {
                 let running = t.estimate.as_ref()?;
                 if (running.point - position_in_world).norm() > radius_m {
                     return None;
                 }
-                let e = refine_landmark(&t.rays).ok()?;
+                // The parallax criterion does not need the refinement (same rays, same
+                // formula as `TriangulatedPoint::max_parallax_rad`).
+                let u0 = t.rays.first()?.ray.direction;
+                let parallax = u0.cross(&t.far.1).norm().atan2(u0.dot(&t.far.1));
+                if parallax < c.min_parallax_rad {
+                    return None;
+                }
+                let n_rays = t.rays.len();
+                let e = match &t.refined {
+                    Some((n, e)) if *n == n_rays => (*e)?,
+                    _ => {
+                        let e = refine_landmark(&t.rays).ok();
+                        t.refined = Some((n_rays, e));
+                        e?
+                    }
+                };
                 let landmark = MappedLandmark {
                     id: t.id,
                     position_enu: e.point,
                     covariance: e.covariance,
-                    n_obs: t.rays.len(),
+                    n_obs: n_rays,
                     max_parallax_rad: e.max_parallax_rad(),
                     class: t.class,
                 };
                 if !c.accepts(&landmark) {
                     return None;
                 }
-                let n = t.rays.len() as f64;
-                let pose_floor_covariance = t.rays.iter().fold(Matrix3::zeros(), |acc, r| {
-                    acc + r.pose_covariance.fixed_view::<3, 3>(0, 0)
-                }) / n;
+                let pose_floor_covariance = t.floor_sum / n_rays as f64;
                 Some(NearbySurrogate {
                     landmark,
                     pose_floor_covariance,
@@ -499,6 +547,37 @@ pub struct NearbySurrogate {
     pub pose_floor_covariance: Matrix3<f64>,
 }
 
+/// The square roots of the traces of a ray's pose position and attitude covariances, for
+/// the gates' cheap bound on the ray's residual variance in any direction.
+#[derive(Clone, Copy, Debug)]
+struct PoseSpread {
+    /// `√tr Σ_pp` (metres).
+    pos: f64,
+    /// `√tr Σ_θθ` (radians).
+    rot: f64,
+    /// Distance of the camera from the rig origin (metres).
+    offset: f64,
+}
+
+impl PoseSpread {
+    fn of(ray: &MapRay) -> Self {
+        let c = &ray.pose_covariance;
+        Self {
+            pos: (c[(0, 0)] + c[(1, 1)] + c[(2, 2)]).max(0.0).sqrt(),
+            rot: (c[(3, 3)] + c[(4, 4)] + c[(5, 5)]).max(0.0).sqrt(),
+            offset: (ray.ray.origin - ray.rig_origin).norm(),
+        }
+    }
+
+    /// `(√tr Σ_pp + lever·√tr Σ_θθ)² + (range·σ_cam)²`: an upper bound on the residual
+    /// variance of the ray in any direction at a point `lever` from the rig origin and
+    /// `range` from the camera.
+    #[inline]
+    fn variance_bound(&self, lever: f64, range: f64, sigma_rad: f64) -> f64 {
+        (self.pos + lever * self.rot).powi(2) + (range * sigma_rad).powi(2)
+    }
+}
+
 /// True when two optional class labels may belong to one landmark.
 #[inline]
 fn classes_match(a: Option<u32>, b: Option<u32>) -> bool {
@@ -514,7 +593,9 @@ fn classes_match(a: Option<u32>, b: Option<u32>) -> bool {
 #[inline]
 fn gate_estimate(
     est: &TriangulatedPoint,
+    est_trace: f64,
     ray: &MapRay,
+    spread: &PoseSpread,
     max_range_m: f64,
     gate: f64,
 ) -> Option<f64> {
@@ -527,23 +608,20 @@ fn gate_estimate(
     // Cheap early rejection (as in `gate_two_rays`): with `tr Σ̂` plus the ray's variance
     // bound above every variance, `|r⊥|² / bound ≤ m`; beyond the gate, skip the exact form.
     let perp2 = (r - u * range).norm_squared();
-    let cp = &ray.pose_covariance;
-    let pos = (cp[(0, 0)] + cp[(1, 1)] + cp[(2, 2)]).max(0.0).sqrt();
-    let rot = (cp[(3, 3)] + cp[(4, 4)] + cp[(5, 5)]).max(0.0).sqrt();
     let lever = (est.point - ray.rig_origin).norm();
-    let var_bound = est.covariance.trace().max(0.0)
-        + (pos + lever * rot).powi(2)
-        + (range * ray.sigma_rad).powi(2);
+    let var_bound = est_trace + spread.variance_bound(lever, range, ray.sigma_rad);
     if perp2 > gate * var_bound {
         let m = perp2 / var_bound;
         return m.is_finite().then_some(m);
     }
     let (e1, e2) = tangent_basis(&u);
     let rv = Vector2::new(e1.dot(&r), e2.dot(&r));
-    let c = est.covariance + ray_residual_covariance(ray, &est.point);
-    let ce1: Vector3<f64> = c * e1;
-    let ce2: Vector3<f64> = c * e2;
-    let m = Matrix2::new(e1.dot(&ce1), e1.dot(&ce2), e2.dot(&ce1), e2.dot(&ce2));
+    // Eᵀ (Σ̂ + S) E, with Eᵀ S E from the ray's residual covariance without forming it.
+    let ce1: Vector3<f64> = est.covariance * e1;
+    let ce2: Vector3<f64> = est.covariance * e2;
+    let (s11, s12, s22) = ray_residual_tangent(ray, &est.point, &e1, &e2);
+    let m12 = 0.5 * (e1.dot(&ce2) + e2.dot(&ce1)) + s12;
+    let m = Matrix2::new(e1.dot(&ce1) + s11, m12, m12, e2.dot(&ce2) + s22);
     let inv = m.try_inverse()?;
     let d2 = rv.dot(&(inv * rv));
     d2.is_finite().then_some(d2)
@@ -585,7 +663,13 @@ fn closest_on_segments(
 /// closest points). Unlike a line intersection, this stays meaningful for nearly parallel
 /// rays, whose noisy intersection can be anywhere along the line of sight.
 #[inline]
-fn gate_two_rays(a: &MapRay, b: &MapRay, opts: &MapperOptions) -> Option<f64> {
+fn gate_two_rays(
+    a: &MapRay,
+    a_spread: &PoseSpread,
+    b: &MapRay,
+    b_spread: &PoseSpread,
+    opts: &MapperOptions,
+) -> Option<f64> {
     let (u, v) = (a.ray.direction, b.ray.direction);
     let near = MIN_RANGE_M.min(0.5 * opts.max_range_m);
     let (a0, b0) = (a.ray.at(near), b.ray.at(near));
@@ -593,30 +677,28 @@ fn gate_two_rays(a: &MapRay, b: &MapRay, opts: &MapperOptions) -> Option<f64> {
     let pa = a0 + u * s;
     let pb = b0 + v * t;
     let g = pa - pb;
-    let gap = g.norm();
-    if gap == 0.0 {
+    let gap2 = g.norm_squared();
+    if gap2 == 0.0 {
         return Some(0.0);
     }
     // Cheap early rejection: an upper bound on each ray's residual variance along any
     // direction, `(√tr Σ_pp + r·√tr Σ_θθ)² + d²σ²` (r: lever arm from the rig, d: range),
     // gives a lower bound on `m`; when even that exceeds the gate, the exact variance is not
     // needed.
-    let bound = |ray: &MapRay, p: &Vector3<f64>| {
-        let c = &ray.pose_covariance;
-        let pos = (c[(0, 0)] + c[(1, 1)] + c[(2, 2)]).max(0.0).sqrt();
-        let rot = (c[(3, 3)] + c[(4, 4)] + c[(5, 5)]).max(0.0).sqrt();
-        let lever = (p - ray.rig_origin).norm();
-        let d = (p - ray.ray.origin).norm();
-        (pos + lever * rot).powi(2) + (d * ray.sigma_rad).powi(2)
+    // The closest points are `near + s` and `near + t` from the cameras (unit directions),
+    // and the lever from the rig origin is at most that plus the camera offset: no square
+    // root is needed for the bound.
+    let bound = |ray: &MapRay, spread: &PoseSpread, d: f64| {
+        spread.variance_bound(d + spread.offset, d, ray.sigma_rad)
     };
-    let var_bound = bound(a, &pa) + bound(b, &pb);
-    if gap * gap > opts.gate_chi2_1dof * var_bound {
-        let m = gap * gap / var_bound;
+    let var_bound = bound(a, a_spread, near + s) + bound(b, b_spread, near + t);
+    if gap2 > opts.gate_chi2_1dof * var_bound {
+        let m = gap2 / var_bound;
         return m.is_finite().then_some(m);
     }
+    let gap = gap2.sqrt();
     let gh = g / gap;
-    let var = gh.dot(&(ray_residual_covariance(a, &pa) * gh))
-        + gh.dot(&(ray_residual_covariance(b, &pb) * gh));
-    let m = gap * gap / var;
+    let var = ray_residual_variance(a, &pa, &gh) + ray_residual_variance(b, &pb, &gh);
+    let m = gap2 / var;
     m.is_finite().then_some(m)
 }

@@ -582,3 +582,56 @@ fn gps_time_offset_is_recovered_on_a_loop_and_applying_it_removes_the_lag_error(
     }
     assert_eq!(ok, trials);
 }
+
+/// The gates' quadratic forms (`vᵀSv`, `EᵀSE`) equal those of the full residual covariance,
+/// and the full covariance equals the textbook `P J Σ Jᵀ P + d²σ² P` it is built to match.
+#[test]
+fn residual_quadratic_forms_match_the_full_covariance() {
+    use super::refine::{ray_residual_tangent, ray_residual_variance};
+    use crate::synthetic::{random_unit_vector, tangent_basis};
+    let mut r = rng(11);
+    for _ in 0..200 {
+        let mut l = Matrix6::zeros();
+        for i in 0..6 {
+            for j in 0..=i {
+                l[(i, j)] = normal(&mut r) * if i < 3 { 0.3 } else { 0.01 };
+            }
+        }
+        let cov = l * l.transpose();
+        let origin = Vector3::from_iterator((0..3).map(|_| normal(&mut r) * 10.0));
+        let rig_origin = origin + Vector3::from_iterator((0..3).map(|_| normal(&mut r) * 0.2));
+        let u = random_unit_vector(&mut r);
+        let ray = MapRay {
+            ray: Ray::try_new(origin, u).unwrap(),
+            rig_origin,
+            pose_covariance: cov,
+            sigma_rad: 1e-3,
+        };
+        let point = origin + u * 30.0 + Vector3::from_iterator((0..3).map(|_| normal(&mut r)));
+        let s = ray_residual_covariance(&ray, &point);
+        // Reference: the general products.
+        let lever = point - rig_origin;
+        let mut j = nalgebra::Matrix3x6::zeros();
+        j.fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(&Matrix3::identity());
+        j.fixed_view_mut::<3, 3>(0, 3).copy_from(&-Matrix3::new(
+            0.0, -lever.z, lever.y, lever.z, 0.0, -lever.x, -lever.y, lever.x, 0.0,
+        ));
+        let p = Matrix3::identity() - u * u.transpose();
+        let d2 = (point - origin).norm_squared();
+        let reference = p * (j * cov * j.transpose()) * p + p * (d2 * 1e-6);
+        let scale = reference.norm();
+        assert!(
+            (s - reference).norm() <= 1e-12 * scale.max(1e-12),
+            "{s} vs {reference}"
+        );
+        let v = random_unit_vector(&mut r);
+        let q = ray_residual_variance(&ray, &point, &v);
+        assert!((q - v.dot(&(s * v))).abs() <= 1e-12 * scale.max(1e-12));
+        let (e1, e2) = tangent_basis(&u);
+        let (s11, s12, s22) = ray_residual_tangent(&ray, &point, &e1, &e2);
+        assert!((s11 - e1.dot(&(s * e1))).abs() <= 1e-12 * scale.max(1e-12));
+        assert!((s12 - e1.dot(&(s * e2))).abs() <= 1e-12 * scale.max(1e-12));
+        assert!((s22 - e2.dot(&(s * e2))).abs() <= 1e-12 * scale.max(1e-12));
+    }
+}
