@@ -8,11 +8,14 @@ use vgps::synthetic::{P3pProblem, rng};
 /// Number of pre-generated problems cycled through by the benchmark.
 const PROBLEMS: usize = 1024;
 
+/// One problem: the rig's up, two bearings in the rig frame, two world points.
+type Problem = (Vector3<f64>, [Vector3<f64>; 2], [Vector3<f64>; 2]);
+
 /// Benchmarks of `vgps::solvers::up2p` (full, with levelling) and `up2p_levelled` (the inner
 /// loop of a matcher: bearings levelled once).
 pub fn benches(c: &mut Criterion) {
     let mut r = rng(11);
-    let problems: Vec<(Vector3<f64>, [Vector3<f64>; 2], [Vector3<f64>; 2])> = (0..PROBLEMS)
+    let problems: Vec<Problem> = (0..PROBLEMS)
         .map(|_| {
             let p = P3pProblem::random_omni(&mut r, 50.0);
             let up = p.world_from_rig.rotation.inverse() * Vector3::z();

@@ -128,7 +128,7 @@ pub fn up2p_levelled(
     let d = p1 - p2;
     let dxy2 = d.x * d.x + d.y * d.y;
     let scale2 = d.norm_squared();
-    if !(dxy2 > MIN_HORIZONTAL_SEPARATION * MIN_HORIZONTAL_SEPARATION * scale2) {
+    if dxy2.is_nan() || dxy2 <= MIN_HORIZONTAL_SEPARATION * MIN_HORIZONTAL_SEPARATION * scale2 {
         return;
     }
     // λ₂ = p λ₁ + q.
@@ -143,7 +143,7 @@ pub fn up2p_levelled(
     let b = -2.0 * q * (wx * f2.x + wy * f2.y);
     let c = q * q * (f2.x * f2.x + f2.y * f2.y) - dxy2;
     let disc = b * b - 4.0 * a * c;
-    if !(disc >= 0.0) {
+    if disc.is_nan() || disc < 0.0 {
         return;
     }
     let sq = disc.sqrt();
