@@ -108,12 +108,17 @@ fn main() {
                 .zip(&frame.truth)
                 .filter(|(a, t)| a.is_some() && a != t)
                 .count();
+            let runner_err = result
+                .runner_up_pose
+                .as_ref()
+                .map(|p| (p.translation.vector - pose.translation.vector).norm());
             println!(
-                "{} true {} best {} runner {:?} cells {} hyp {} err {:?} wrong_links {} {:.1} ms {}",
+                "{} true {} best {} runner {:?} (runner-up {:?} m from the truth) cells {} hyp {} err {:?} wrong_links {} {:.1} ms {}",
                 result.status,
                 true_count,
                 result.best_score,
                 result.runner_up_score,
+                runner_err,
                 result.cells,
                 result.hypotheses,
                 err,

@@ -15,6 +15,7 @@ mod refine_pose;
 mod robust;
 mod synthetic;
 mod triangulation;
+mod up2p;
 
 criterion_group!(
     benches,
@@ -31,5 +32,6 @@ criterion_group!(
     robust::benches,
     synthetic::benches,
     triangulation::benches,
+    up2p::benches,
 );
 criterion_main!(benches);

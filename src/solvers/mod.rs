@@ -25,8 +25,10 @@ pub mod p3p;
 pub mod p3p_cosines;
 pub mod refine_pose;
 pub mod trilaterate;
+pub mod up2p;
 
 pub use p3p::p3p;
 pub use p3p_cosines::p3p_cosines;
 pub use refine_pose::{RefineError, RefineOptions, RefinedPose, RobustLoss, refine_pose};
 pub use trilaterate::{TrilaterationError, select_by_handedness, trilaterate};
+pub use up2p::up2p;
