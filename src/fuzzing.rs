@@ -438,7 +438,10 @@ pub fn png_decode(data: &[u8]) {
     }
 }
 
-fn check_p3p_input(data: &[u8]) -> Option<([Vector3<f64>; 3], [Vector3<f64>; 3])> {
+/// Three vectors.
+type Triple = [Vector3<f64>; 3];
+
+fn check_p3p_input(data: &[u8]) -> Option<(Triple, Triple)> {
     let input: P3pInput = decode(data)?;
     Some((
         input.bearings.each_ref().map(vec3),
@@ -535,13 +538,14 @@ pub fn triangulate(data: &[u8]) {
         assert!(x.gap_m.is_finite() && x.gap_m >= 0.0, "{x:?}");
         assert!(x.parallax_rad().is_finite(), "{x:?}");
     }
-    for result in [triangulate_rays(&obs), triangulate_rays_weighted(&obs)] {
-        if let Ok(t) = result {
-            assert_vec_finite(&t.point, "triangulated point");
-            assert!(t.covariance.iter().all(|x| x.is_finite()), "{t:?}");
-            assert!(t.max_parallax_rad().is_finite(), "{t:?}");
-            assert_eq!(t.n_obs, obs.len());
-        }
+    for t in [triangulate_rays(&obs), triangulate_rays_weighted(&obs)]
+        .into_iter()
+        .flatten()
+    {
+        assert_vec_finite(&t.point, "triangulated point");
+        assert!(t.covariance.iter().all(|x| x.is_finite()), "{t:?}");
+        assert!(t.max_parallax_rad().is_finite(), "{t:?}");
+        assert_eq!(t.n_obs, obs.len());
     }
 }
 
@@ -615,9 +619,12 @@ pub fn matcher(data: &[u8]) {
     }
 }
 
+/// A target: its name and its body.
+pub type Target = (&'static str, fn(&[u8]));
+
 /// Every target: `(name, body)`, the names of `fuzz/fuzz_targets/*.rs` and of the corpus
 /// directories `fuzz/corpus/<name>/`.
-pub const TARGETS: &[(&str, fn(&[u8]))] = &[
+pub const TARGETS: &[Target] = &[
     ("native_json", native_json),
     ("ladybug_ini", ladybug_ini),
     ("nclt_calibration", nclt_calibration),
