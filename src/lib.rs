@@ -29,6 +29,7 @@
 //! - [`drive`]: drive logs (manifest, frames, detections, NMEA GNSS, truth): reader and writers.
 //! - [`simulate`]: simulated drives (city, route, detections, GNSS with outages) for tests and demos.
 //! - [`localizer`]: the frame-by-frame localizer for robot stacks (tracking, re-acquisition, surrogates).
+//! - [`fuzzing`]: the bodies of the `cargo fuzz` targets (invariants checked on raw input).
 //! - [`cli`]: the command implementations behind the thin `vgps` binary.
 //!
 //! ## Conventions (one set, everywhere)
@@ -60,6 +61,7 @@ pub mod calibration;
 pub mod cli;
 pub mod drive;
 pub mod fix;
+pub mod fuzzing;
 pub mod geo;
 pub mod geometry;
 pub mod imaging;

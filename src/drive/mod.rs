@@ -42,7 +42,7 @@ use crate::calibration::{LoadError, Rig};
 use crate::io::{InputError, Landmark};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use tables::DetectionRow;
+pub(crate) use tables::{DetectionRow, detections_from_text};
 
 /// The manifest's file name inside a drive directory.
 pub const MANIFEST_NAME: &str = "drive.json";

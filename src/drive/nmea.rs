@@ -264,7 +264,8 @@ fn number(fields: &[&str], k: usize, name: &str) -> Result<Option<f64>, String> 
 /// `hhmmss.sss` → seconds of the day.
 fn time_of_day(text: &str) -> Result<f64, String> {
     let bad = || format!("time `{text}` is not hhmmss.ss");
-    if text.len() < 6 || !text.is_char_boundary(6) {
+    // ASCII digits first: the slices below must fall on character boundaries.
+    if text.len() < 6 || !text.as_bytes()[..6].is_ascii() {
         return Err(bad());
     }
     let h: u32 = text[0..2].parse().map_err(|_| bad())?;

@@ -68,9 +68,13 @@ fn content_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
 
 /// Reads `K_cam{i}.csv`: `(fx, fy, skew, cx, cy)`.
 pub fn read_intrinsics(path: &Path) -> Result<[f64; 5], LoadError> {
-    let text = read_text(path)?;
+    intrinsics_from_str(&read_text(path)?, path)
+}
+
+/// Parses the text of a `K_cam{i}.csv` (see [`read_intrinsics`]); `path` is quoted in errors.
+pub fn intrinsics_from_str(text: &str, path: &Path) -> Result<[f64; 5], LoadError> {
     let mut rows = Vec::new();
-    for (n, line) in content_lines(&text) {
+    for (n, line) in content_lines(text) {
         if rows.len() == 3 {
             return Err(LoadError::invalid(
                 path,
@@ -105,8 +109,12 @@ pub fn read_intrinsics(path: &Path) -> Result<[f64; 5], LoadError> {
 
 /// Reads `x_lb3_c{i}.csv`: `head_from_camera`.
 pub fn read_extrinsics(path: &Path) -> Result<IsometryMatrix3<f64>, LoadError> {
-    let text = read_text(path)?;
-    let mut lines = content_lines(&text);
+    extrinsics_from_str(&read_text(path)?, path)
+}
+
+/// Parses the text of an `x_lb3_c{i}.csv` (see [`read_extrinsics`]); `path` is quoted in errors.
+pub fn extrinsics_from_str(text: &str, path: &Path) -> Result<IsometryMatrix3<f64>, LoadError> {
+    let mut lines = content_lines(text);
     let Some((n, line)) = lines.next() else {
         return Err(LoadError::invalid(
             path,
@@ -147,8 +155,19 @@ pub fn size_from_name(path: &Path) -> Option<(u32, u32)> {
 /// contradicting `expected`, a line without four numbers, a non-finite value, a pixel
 /// outside the table or given twice, or missing entries.
 pub fn read_table(path: &Path, expected: Option<(u32, u32)>) -> Result<DistortionTable, LoadError> {
-    let text = read_text(path)?;
-    let mut lines = content_lines(&text);
+    table_from_str(&read_text(path)?, path, expected)
+}
+
+/// Parses the text of a distortion table (see [`read_table`]); `path` is quoted in errors.
+///
+/// # Errors
+/// As [`read_table`].
+pub fn table_from_str(
+    text: &str,
+    path: &Path,
+    expected: Option<(u32, u32)>,
+) -> Result<DistortionTable, LoadError> {
+    let mut lines = content_lines(text);
     let Some((hn, header)) = lines.next() else {
         return Err(LoadError::invalid(
             path,

@@ -1,0 +1,5 @@
+#![no_main]
+//! Fuzz target `rays_csv`: the body is [`vgps::fuzzing::rays_csv`].
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| vgps::fuzzing::rays_csv(data));

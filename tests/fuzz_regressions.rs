@@ -1,0 +1,28 @@
+//! Inputs that made a fuzz target fail (see `docs/fuzzing.md`), replayed through the same
+//! code path (`vgps::fuzzing::<target>`) and checked directly on the library function.
+
+fn hex(s: &str) -> Vec<u8> {
+    (0..s.len())
+        .step_by(2)
+        .map(|i| u8::from_str_radix(&s[i..i + 2], 16).expect("hex"))
+        .collect()
+}
+
+/// `nmea` crash-8a0b0b0a: a GGA time field with multi-byte UTF-8 characters (invalid bytes
+/// replaced by U+FFFD) made `time_of_day` slice inside a character and panic.
+#[test]
+fn nmea_time_with_multibyte_characters_is_an_invalid_field() {
+    let data = hex(
+        "244750524d432c3132303030302e30302c412c343830372e303338302c4e2c30313133312e3030302c343830372e303338302c4e2c30313133312e303030302c452c302e302c302e302c3233303339342c2c2c412a35300d0a2447504747412c3132303030302e30302c302c452c302e302c302e302c3233303339342c2c2c412a35300d0a2447504747412c3132303030302e30302c343830372e303330352c2c30392c31322c2c2c32342c2c2c2c2c322e352c312e332c322e352a33390d0a2447504747412c313230cbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcb3030322e30302c2c2c2c2c302c30302c2c2c4d2c2c4d2c2c2a34390d0a67617262616765206c696e650d0a2447504747412c3132303030332e30302c343830372e303339302c532c30313133312e303031302c572c322c31322c302e372c2d352e352c4d2c34362e392c4d2c2c2a30300d0a",
+    );
+    vgps::fuzzing::nmea(&data);
+    let (records, stats) = vgps::drive::nmea::read_nmea(&String::from_utf8_lossy(&data));
+    assert!(stats.invalid + stats.bad_checksum >= 1, "{stats:?}");
+    assert!(records.iter().all(|r| r.time_s.is_finite()));
+    // The minimal form: a valid checksum, a time of 2-byte characters.
+    let body = "GPGGA,1é2é3é.00,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,";
+    let sum = vgps::drive::nmea::checksum(body);
+    let (records, stats) = vgps::drive::nmea::read_nmea(&format!("${body}*{sum:02X}\n"));
+    assert!(records.is_empty());
+    assert_eq!(stats.invalid, 1, "{stats:?}");
+}
