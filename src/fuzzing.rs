@@ -430,6 +430,39 @@ pub fn nmea(data: &[u8]) {
     }
 }
 
+/// The invariants of GNSS records read from any format: finite times, positions in range.
+fn assert_gnss_records(records: &[crate::drive::GnssRecord]) {
+    for r in records {
+        assert_finite(r.time_s, "time_s");
+        if let Some(f) = &r.fix {
+            let p = &f.position;
+            assert!(p.lat_deg.abs() <= 90.0 && p.lon_deg.abs() <= 180.0 && p.alt_m.is_finite());
+            assert!(f.hdop.is_none_or(f64::is_finite));
+        }
+        if let Some(h) = r.heading_deg {
+            assert!((0.0..360.0).contains(&h), "heading {h}");
+        }
+    }
+}
+
+/// Target `gpx`: [`crate::drive::gpx::read_gpx`] (GPX 1.0/1.1 track points).
+pub fn gpx(data: &[u8]) {
+    if let Ok((records, _)) =
+        crate::drive::gpx::read_gpx(std::path::Path::new("fuzz.gpx"), &text(data))
+    {
+        assert_gnss_records(&records);
+    }
+}
+
+/// Target `nclt_gps`: [`crate::drive::nclt_gps::read_nclt_gps`] (NCLT `gps.csv`).
+pub fn nclt_gps(data: &[u8]) {
+    if let Ok((records, _)) =
+        crate::drive::nclt_gps::read_nclt_gps(std::path::Path::new("gps.csv"), &text(data))
+    {
+        assert_gnss_records(&records);
+    }
+}
+
 /// Target `png_decode`: [`decode_png`] within [`PNG_LIMITS`].
 pub fn png_decode(data: &[u8]) {
     if let Ok(image) = decode_png(data, &PNG_LIMITS) {
@@ -636,6 +669,8 @@ pub const TARGETS: &[Target] = &[
     ("drive_tables", drive_tables),
     ("drive_json", drive_json),
     ("nmea", nmea),
+    ("gpx", gpx),
+    ("nclt_gps", nclt_gps),
     ("png_decode", png_decode),
     ("p3p", p3p_lambda_twist),
     ("p3p_cosines", p3p_law_of_cosines),

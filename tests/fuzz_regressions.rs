@@ -26,3 +26,16 @@ fn nmea_time_with_multibyte_characters_is_an_invalid_field() {
     assert!(records.is_empty());
     assert_eq!(stats.invalid, 1, "{stats:?}");
 }
+
+/// `p3p_cosines` timeout-bf6b4835: a scene whose residual made the interval subdivision of
+/// `p3p_cosines` recurse into an exponential tree (more than 10 s, the fuzzer's timeout).
+/// Subdivision now has a budget per sampling interval (`MAX_SPLITS_PER_INTERVAL`): the
+/// solve returns at once. No timing is asserted; before the fix this test did not finish.
+#[test]
+fn p3p_cosines_subdivision_is_bounded() {
+    let data = hex(
+        "7411001818181818181818181818181856000000000018181818000000001818181818186200000000000000181800000000000000000000001818181818181818000de5fe0000a8fc",
+    );
+    vgps::fuzzing::p3p_law_of_cosines(&data);
+    vgps::fuzzing::p3p_lambda_twist(&data);
+}

@@ -28,6 +28,13 @@ pub const DUPLICATE_RANGE_TOLERANCE: f64 = 1e-9;
 /// Deepest subdivision of a sampling interval by the extremum and S-shape searches.
 const MAX_SPLIT_DEPTH: u32 = 48;
 
+/// Most subdivisions of one sampling interval (all depths together). Subdivision follows
+/// the residual's extrema; a well-posed residual needs a few dozen, so this only bounds the
+/// work on pathological input (a fuzzer found a scene whose subdivision tree was
+/// exponential in [`MAX_SPLIT_DEPTH`]). When it runs out, the interval is treated as
+/// unsplittable: a sign change is still refined to its root.
+const MAX_SPLITS_PER_INTERVAL: u32 = 512;
+
 /// Narrowest subdivided interval (radians of the parameter α).
 const MIN_SPLIT_WIDTH: f64 = 1e-13;
 
@@ -475,6 +482,7 @@ impl Residual {
     ///   the intersection (a secant step towards the extremum) until a sign change appears,
     ///   the bound clears, or the extremum is located to [`MIN_SPLIT_WIDTH`], where a
     ///   residual within `tangent_tolerance` is taken as a double root.
+    #[allow(clippy::too_many_arguments)] // the recursion's state, passed down unchanged
     fn scan(
         &self,
         sign: f64,
@@ -483,6 +491,7 @@ impl Residual {
         depth: u32,
         tangent_tolerance: f64,
         roots: &mut ArrayVec<Root, 16>,
+        splits_left: &mut u32,
     ) {
         if b.g == 0.0 {
             let _ = roots.try_push(b.root(sign));
@@ -492,12 +501,15 @@ impl Residual {
             return; // Recorded as the end of the interval on its left.
         }
         let h = b.alpha - a.alpha;
-        let splittable = depth < MAX_SPLIT_DEPTH && h > MIN_SPLIT_WIDTH;
+        let splittable = depth < MAX_SPLIT_DEPTH && h > MIN_SPLIT_WIDTH && *splits_left > 0;
+        if splittable {
+            *splits_left -= 1;
+        }
         if a.g * b.g < 0.0 {
             if splittable && let Some(t) = hermite_two_extrema(&a, &b) {
                 let m = self.node_from(&a, t * h, sign);
-                self.scan(sign, a, m, depth + 1, tangent_tolerance, roots);
-                self.scan(sign, m, b, depth + 1, tangent_tolerance, roots);
+                self.scan(sign, a, m, depth + 1, tangent_tolerance, roots, splits_left);
+                self.scan(sign, m, b, depth + 1, tangent_tolerance, roots, splits_left);
             } else {
                 let _ = roots.try_push(self.refine(sign, &a, &b));
             }
@@ -519,12 +531,12 @@ impl Residual {
                 return;
             }
             let m = self.node_from(&a, t.clamp(0.01 * h, 0.99 * h), sign);
-            self.scan(sign, a, m, depth + 1, tangent_tolerance, roots);
-            self.scan(sign, m, b, depth + 1, tangent_tolerance, roots);
+            self.scan(sign, a, m, depth + 1, tangent_tolerance, roots, splits_left);
+            self.scan(sign, m, b, depth + 1, tangent_tolerance, roots, splits_left);
         } else if splittable && let Some(t) = hermite_two_extrema(&a, &b) {
             let m = self.node_from(&a, t * h, sign);
-            self.scan(sign, a, m, depth + 1, tangent_tolerance, roots);
-            self.scan(sign, m, b, depth + 1, tangent_tolerance, roots);
+            self.scan(sign, a, m, depth + 1, tangent_tolerance, roots, splits_left);
+            self.scan(sign, m, b, depth + 1, tangent_tolerance, roots, splits_left);
         }
     }
 }
@@ -762,12 +774,16 @@ fn solve_unit(
                 let _ = found.try_push(b.root(sign));
             } else if a.g * b.g < 0.0 {
                 if search_extrema {
-                    residual.scan(sign, a, b, 0, tangent_tolerance, &mut found);
+                    residual.scan(sign, a, b, 0, tangent_tolerance, &mut found, &mut {
+                        MAX_SPLITS_PER_INTERVAL
+                    });
                 } else {
                     let _ = found.try_push(residual.refine(sign, &a, &b));
                 }
             } else if search_extrema && a.g != 0.0 {
-                residual.scan(sign, a, b, 0, tangent_tolerance, &mut found);
+                residual.scan(sign, a, b, 0, tangent_tolerance, &mut found, &mut {
+                    MAX_SPLITS_PER_INTERVAL
+                });
             }
         };
         let len = len.min(CHUNK);
