@@ -39,3 +39,37 @@ fn p3p_cosines_subdivision_is_bounded() {
     vgps::fuzzing::p3p_law_of_cosines(&data);
     vgps::fuzzing::p3p_lambda_twist(&data);
 }
+
+/// `nclt_table` crash-56586e1e (out of memory): a distortion-table header claiming a
+/// table of about 4·10⁹ pixels made the reader allocate it before reading a single entry.
+/// The reader now refuses sides above `MAX_IMAGE_SIDE_PX` and headers whose table the
+/// file's lines cannot fill, before allocating.
+#[test]
+fn nclt_table_with_a_huge_header_is_refused_before_allocating() {
+    let data = hex(
+        "0ac95858585858585858585858585886005858585858585858363636366a36363636363636363636363636363636363636363636140000000000000036363636363658585858585858585858585858750b000000000000585858585858ce0a58ce0a3231",
+    );
+    vgps::fuzzing::nclt_table(&data);
+    let text = "4000 1000000\n0 0 0.5 0.5\n";
+    let e = vgps::calibration::formats::nclt::table_from_str(
+        text,
+        std::path::Path::new("U2D_Cam0.txt"),
+        None,
+    )
+    .unwrap_err();
+    let message = e.to_string();
+    assert!(
+        message.contains("U2D_Cam0.txt") && message.contains("line 1"),
+        "{message}"
+    );
+}
+
+/// `p3p_cosines` timeout-6f9208b2: a second scene with an exponential subdivision tree (see
+/// `p3p_cosines_subdivision_is_bounded`).
+#[test]
+fn p3p_cosines_second_timeout_is_bounded() {
+    let data = hex(
+        "7411001818181818181818181818181800000000000018181818181818180818181818181818b601040100010000181818ffffffffffffff00000004ff1818181818181800000000181818181818183b000000000000000000e5fe0000a8fc",
+    );
+    vgps::fuzzing::p3p_law_of_cosines(&data);
+}

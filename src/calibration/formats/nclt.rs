@@ -203,7 +203,31 @@ pub fn table_from_str(
             format!("size {width}×{height} is smaller than 2×2"),
         ));
     }
+    if width > crate::calibration::MAX_IMAGE_SIDE_PX
+        || height > crate::calibration::MAX_IMAGE_SIDE_PX
+    {
+        return Err(LoadError::invalid(
+            path,
+            format!("line {hn}"),
+            format!(
+                "size {width}×{height} exceeds the largest image side {} px",
+                crate::calibration::MAX_IMAGE_SIDE_PX
+            ),
+        ));
+    }
     let count = width as usize * height as usize;
+    // Every pixel needs its own line: refuse a header the text cannot fill before
+    // allocating the table (a 3-line file must not claim 4·10⁹ pixels).
+    let available = content_lines(text).count().saturating_sub(1);
+    if available < count {
+        return Err(LoadError::invalid(
+            path,
+            format!("line {hn}"),
+            format!(
+                "the header's {width}×{height} table needs {count} entries, the file has {available} lines after it"
+            ),
+        ));
+    }
     let mut positions = vec![[f64::NAN; 2]; count];
     let mut seen = vec![false; count];
     let mut entries = 0usize;
