@@ -964,6 +964,7 @@ mod tests {
     fn three_observations_use_the_prior_or_report_ambiguity() {
         let mut r = rng(14);
         let mut ambiguous_cases = 0;
+        let mut weak = 0;
         for _ in 0..200 {
             let (truth, points) = scene(&mut r, 3);
             let rays = rays(&mut r, &truth, &points, 0.0);
@@ -973,7 +974,13 @@ mod tests {
             );
             let fix = compute_fix(&rays, &points, &[0.0; 3], &options(1e-3)).unwrap();
             if all.len() == 1 {
-                assert_eq!(fix.status, FixStatus::Ok);
+                if fix.status == FixStatus::DegenerateGeometry {
+                    // Near the danger cylinder (the other roots complex but close).
+                    assert!(fix.message.contains("weakly determined"), "{}", fix.message);
+                    weak += 1;
+                } else {
+                    assert_eq!(fix.status, FixStatus::Ok);
+                }
                 continue;
             }
             ambiguous_cases += 1;
@@ -995,6 +1002,22 @@ mod tests {
                 ..options(1e-3)
             };
             let fix = compute_fix(&rays, &points, &[0.0; 3], &with_prior).unwrap();
+            if fix.status == FixStatus::DegenerateGeometry {
+                // Two solutions close together (the rig near the danger cylinder): the
+                // refinement's covariance would not describe the cost, the fix is refused.
+                assert!(fix.message.contains("weakly determined"), "{}", fix.message);
+                let scene_m = points
+                    .iter()
+                    .map(|p| (p - truth.translation.vector).norm())
+                    .fold(0.0, f64::max);
+                println!("weakly determined: solutions {nearest_other} m apart, scene {scene_m} m");
+                assert!(
+                    nearest_other < 0.2 * scene_m,
+                    "{nearest_other} m of {scene_m} m"
+                );
+                weak += 1;
+                continue;
+            }
             assert_eq!(fix.status, FixStatus::Ok, "{}", fix.message);
             let (dp, _) =
                 crate::synthetic::pose_error(&fix.estimate.unwrap().world_from_rig, &truth);
@@ -1014,6 +1037,8 @@ mod tests {
             ambiguous_cases >= 20,
             "only {ambiguous_cases} multi-solution cases"
         );
+        println!("{weak} of 200 three-point scenes refused as weakly determined");
+        assert!(weak <= 10, "{weak} of 200 refused as weakly determined");
     }
 
     #[test]

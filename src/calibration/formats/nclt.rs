@@ -222,9 +222,9 @@ pub fn table_from_str(
     if available < count {
         return Err(LoadError::invalid(
             path,
-            format!("line {hn}"),
+            "end of file",
             format!(
-                "the header's {width}×{height} table needs {count} entries, the file has {available} lines after it"
+                "at most {available} entries after the header (line {hn}), but a {width}×{height} table needs {count}"
             ),
         ));
     }
