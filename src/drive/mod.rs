@@ -524,24 +524,10 @@ impl Drive {
 /// # Errors
 /// [`DriveError::Write`] naming `path`.
 pub fn write_text(path: &Path, text: &str) -> Result<(), DriveError> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
-    let result = std::fs::write(&tmp, text).and_then(|()| std::fs::rename(&tmp, path));
-    if let Err(source) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(DriveError::Write {
-            path: path.to_path_buf(),
-            source,
-        });
-    }
-    Ok(())
+    crate::io::write_atomic(path, text.as_bytes()).map_err(|source| DriveError::Write {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
 /// Writes the manifest as `dir/drive.json` (pretty JSON, atomically).

@@ -37,11 +37,13 @@
 //! assert_eq!(err.to_string(), "L.csv:2: field `lat`: latitude 97 is outside [-90, 90] degrees");
 //! ```
 
+mod atomic;
 mod landmarks;
 mod observations;
 mod rays;
 pub(crate) mod table;
 
+pub use atomic::write_atomic;
 pub use landmarks::{Landmark, landmarks_from_reader, read_landmarks};
 pub use observations::{Measurement, Observation, observations_from_reader, read_observations};
 pub use rays::{RayRecord, rays_from_reader, read_rays};

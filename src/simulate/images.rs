@@ -297,20 +297,10 @@ pub fn write_images(
 
 /// Writes bytes atomically (temporary file in the same directory, then a rename).
 fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), DriveError> {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let tmp = path.with_file_name(format!(".{name}.tmp{}", std::process::id()));
-    let result = std::fs::write(&tmp, bytes).and_then(|()| std::fs::rename(&tmp, path));
-    if let Err(source) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(DriveError::Write {
-            path: path.to_path_buf(),
-            source,
-        });
-    }
-    Ok(())
+    crate::io::write_atomic(path, bytes).map_err(|source| DriveError::Write {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
 #[cfg(test)]

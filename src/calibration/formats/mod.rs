@@ -212,22 +212,5 @@ pub fn to_lut_rig(rig: &Rig, step: u32, path: &Path) -> Result<Rig, LoadError> {
 /// # Errors
 /// [`LoadError::Io`] naming `path`.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), LoadError> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => std::path::PathBuf::from("."),
-    };
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .ok_or_else(|| LoadError::Io {
-            path: path.display().to_string(),
-            reason: "not a file name".into(),
-        })?;
-    let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
-    let result = std::fs::write(&tmp, bytes).and_then(|()| std::fs::rename(&tmp, path));
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(LoadError::io(path, &e));
-    }
-    Ok(())
+    crate::io::write_atomic(path, bytes).map_err(|e| LoadError::io(path, &e))
 }
