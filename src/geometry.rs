@@ -64,16 +64,27 @@ pub fn is_finite(v: &Vector3<f64>) -> bool {
 /// assert!((u - Vector3::new(0.6, 0.0, 0.8)).norm() < 1e-15);
 /// assert!(vgps::geometry::try_unit(&Vector3::zeros()).is_none());
 /// ```
+///
+/// Vectors whose squared norm would underflow or overflow (components below about 1e-154 or
+/// above 1e154) are rescaled by their largest component first, so the result is a unit
+/// vector to rounding for every accepted input (a fuzzer found `|u| = 1.005` from a vector
+/// of 1e-160 components).
 #[inline]
 pub fn try_unit(v: &Vector3<f64>) -> Option<Vector3<f64>> {
-    let n = v.norm();
-    if n.is_finite() && n > MIN_DIRECTION_NORM {
-        let u = v / n;
-        if is_finite(&u) {
-            return Some(u);
+    /// Squared norms in this range are computed without underflow or overflow.
+    const SAFE_NORM_SQUARED: (f64, f64) = (1e-200, 1e200);
+    let n2 = v.norm_squared();
+    let u = if n2 > SAFE_NORM_SQUARED.0 && n2 < SAFE_NORM_SQUARED.1 {
+        v / n2.sqrt()
+    } else {
+        let scale = v.amax();
+        if !(scale.is_finite() && scale > MIN_DIRECTION_NORM) {
+            return None;
         }
-    }
-    None
+        let w = v / scale;
+        w / w.norm()
+    };
+    is_finite(&u).then_some(u)
 }
 
 /// Angle between two directions of any non-zero length, in radians, accurate at 0 and π.

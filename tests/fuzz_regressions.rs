@@ -73,3 +73,20 @@ fn p3p_cosines_second_timeout_is_bounded() {
     );
     vgps::fuzzing::p3p_law_of_cosines(&data);
 }
+
+/// `attitude` crash-24861c7b: directions with components near 1e-160 (their squares
+/// underflow) were "normalised" to a length of 1.005, and TRIAD returned a matrix 1 % off
+/// a rotation. `geometry::try_unit` now rescales such vectors first.
+#[test]
+fn triad_of_tiny_directions_is_a_rotation() {
+    let data = hex(
+        "3d000000e2e2e2e2e20064861e2413e9d7a8d22e5e010101010101ffff0101010101010101010101010101ffff010101010101ffffff01e2010101015959ca2f1fd18059ca2f59fe6142ff21af241ed2e92e5e015b0000000000000001010101010101010101010101010101010127010101010101f94ea12969fcc1",
+    );
+    vgps::fuzzing::attitude(&data);
+    let tiny = nalgebra::Vector3::new(1e-160, 1e-160, -1e-160);
+    let u = vgps::geometry::try_unit(&tiny).expect("a direction");
+    assert!((u.norm() - 1.0).abs() < 1e-15, "|u| = {}", u.norm());
+    let huge = nalgebra::Vector3::new(1e300, -1e300, 1e300);
+    let u = vgps::geometry::try_unit(&huge).expect("a direction");
+    assert!((u.norm() - 1.0).abs() < 1e-15, "|u| = {}", u.norm());
+}
