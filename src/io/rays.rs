@@ -77,7 +77,9 @@ pub fn rays_from_reader<R: Read>(path: &Path, reader: R) -> Result<Vec<RayRecord
             row.required_f64("dn")?,
             row.required_f64("du")?,
         );
-        let direction_in_enu = try_unit(&d).ok_or_else(|| {
+        // The format asks for a finite length (|d|² must not overflow), not only a direction.
+        let finite_length = d.norm().is_finite();
+        let direction_in_enu = try_unit(&d).filter(|_| finite_length).ok_or_else(|| {
             row.error(
                 "de",
                 "zero or overflowing direction: (de, dn, du) must have a finite non-zero length",
