@@ -417,17 +417,7 @@ pub fn drive_json(data: &[u8]) {
 pub fn nmea(data: &[u8]) {
     let (records, stats) = crate::drive::nmea::read_nmea(&text(data));
     assert!(stats.used <= stats.lines);
-    for r in &records {
-        assert_finite(r.time_s, "time_s");
-        if let Some(f) = &r.fix {
-            let p = &f.position;
-            assert!(p.lat_deg.abs() <= 90.0 && p.lon_deg.abs() <= 180.0 && p.alt_m.is_finite());
-            assert!(f.hdop.is_none_or(f64::is_finite));
-        }
-        if let Some(h) = r.heading_deg {
-            assert!((0.0..360.0).contains(&h), "heading {h}");
-        }
-    }
+    assert_gnss_records(&records);
 }
 
 /// The invariants of GNSS records read from any format: finite times, positions in range.

@@ -52,9 +52,7 @@ pub fn run(args: &DemoArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
     let started = std::time::Instant::now();
     let drive = simulate(&Scenario::preset(Preset::Reference, DEMO_SEED))
         .map_err(|e| CliError::Internal(format!("the reference drive: {e}")))?;
-    drive
-        .write(&drive_dir)
-        .map_err(|e| CliError::Output(std::io::Error::other(e.to_string())))?;
+    drive.write(&drive_dir).map_err(drive_write_error)?;
     if args.format == OutputFormat::Text {
         writeln!(
             out,
@@ -65,19 +63,7 @@ pub fn run(args: &DemoArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
             started.elapsed().as_secs_f64()
         )?;
     }
-    let replay = ReplayArgs {
-        drive: drive_dir,
-        out: Some(args.out.join("replay")),
-        threads: None,
-        quiet: false,
-        format: args.format,
-        strict: true,
-        pixel_sigma_px: crate::localizer::DEFAULT_PIXEL_SIGMA_PX,
-        no_surrogates: false,
-        no_gnss_prior: false,
-        from_images: false,
-        gnss: Default::default(),
-    };
+    let replay = replay_args(drive_dir, args.out.join("replay"), args.format, false);
     super::replay::run(&replay, out, err)?;
     if args.images {
         run_images(args, out, err)?;
@@ -107,9 +93,7 @@ fn run_images(args: &DemoArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resu
     scenario.survey_gap_m = 0.0;
     let drive =
         simulate(&scenario).map_err(|e| CliError::Internal(format!("the night drive: {e}")))?;
-    let write_error =
-        |e: crate::drive::DriveError| CliError::Output(std::io::Error::other(e.to_string()));
-    drive.write(&night).map_err(write_error)?;
+    drive.write(&night).map_err(drive_write_error)?;
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let images = crate::simulate::images::write_images(
         &drive,
@@ -118,7 +102,7 @@ fn run_images(args: &DemoArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resu
         threads,
         &|_| {},
     )
-    .map_err(write_error)?;
+    .map_err(drive_write_error)?;
     let mut sink = std::io::sink();
     let summary: &mut dyn Write = if args.format == OutputFormat::Text {
         out
@@ -134,18 +118,33 @@ fn run_images(args: &DemoArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resu
         night.display(),
         started.elapsed().as_secs_f64()
     )?;
-    let replay = ReplayArgs {
-        drive: night,
-        out: Some(args.out.join("night-replay")),
+    let replay = replay_args(night, args.out.join("night-replay"), args.format, true);
+    super::replay::run(&replay, summary, err)
+}
+
+/// `vgps replay` with its defaults, as the demo runs it.
+fn replay_args(
+    drive: PathBuf,
+    out: PathBuf,
+    format: OutputFormat,
+    from_images: bool,
+) -> ReplayArgs {
+    ReplayArgs {
+        drive,
+        out: Some(out),
         threads: None,
         quiet: false,
-        format: args.format,
+        format,
         strict: true,
         pixel_sigma_px: crate::localizer::DEFAULT_PIXEL_SIGMA_PX,
         no_surrogates: false,
         no_gnss_prior: false,
-        from_images: true,
+        from_images,
         gnss: Default::default(),
-    };
-    super::replay::run(&replay, summary, err)
+    }
+}
+
+/// A drive that cannot be written is an output error (exit code 1).
+fn drive_write_error(e: crate::drive::DriveError) -> CliError {
+    CliError::Output(std::io::Error::other(e.to_string()))
 }

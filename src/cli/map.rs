@@ -27,10 +27,9 @@ use crate::geometry::Ray;
 use crate::mapping::{
     CameraFrame, GpsSample, MAX_GPS_OFFSET_S, MIN_LANDMARK_RAYS, MapRay, MappedLandmark,
     OffsetSearch, RigObservation, SurveyOptions, calibrate_gps_offset, gps_pose_at,
-    ray_residual_covariance, refine_landmark, survey, write_landmarks_csv,
+    refine_landmark, survey, write_landmarks_csv,
 };
-use crate::synthetic::tangent_basis;
-use nalgebra::{Matrix2, Vector2, Vector3};
+use nalgebra::Vector3;
 use serde::Serialize;
 use std::collections::HashMap;
 use std::io::Write;
@@ -421,17 +420,7 @@ fn landmark_chi2(
     let est = refine_landmark(&rays).ok()?;
     let mut chi2 = 0.0;
     for r in &rays {
-        let (e1, e2) = tangent_basis(&r.ray.direction);
-        let d = est.point - r.ray.origin;
-        let v = Vector2::new(e1.dot(&d), e2.dot(&d));
-        let s = ray_residual_covariance(r, &est.point);
-        let m = Matrix2::new(
-            e1.dot(&(s * e1)),
-            e1.dot(&(s * e2)),
-            e2.dot(&(s * e1)),
-            e2.dot(&(s * e2)),
-        );
-        chi2 += v.dot(&(m.try_inverse()? * v));
+        chi2 += crate::mapping::ray_chi2(r, &est.point)?;
     }
     let dof = (2 * rays.len()).checked_sub(3)?;
     chi2.is_finite().then_some((chi2, dof))

@@ -1,11 +1,9 @@
 //! GPS time-offset calibration: the offset between the GPS track and the camera clock that
 //! best explains the rays.
 
-use super::refine::{MapRay, ray_residual_covariance, refine_landmark};
+use super::refine::{MapRay, refine_landmark};
 use super::survey::{survey_inflated, validate_gps};
 use super::{CameraFrame, GpsSample, MappingError, SurveyOptions, gps_pose_at};
-use crate::synthetic::tangent_basis;
-use nalgebra::{Matrix2, Vector2};
 
 /// Default search interval half-width (seconds): GPS receivers report with latencies of
 /// tens to a few hundred milliseconds.
@@ -221,19 +219,7 @@ fn total_chi2(
         };
         let mut chi = 0.0;
         for r in &rays {
-            let (e1, e2) = tangent_basis(&r.ray.direction);
-            let d = est.point - r.ray.origin;
-            let v = Vector2::new(e1.dot(&d), e2.dot(&d));
-            let s = ray_residual_covariance(r, &est.point);
-            let m = Matrix2::new(
-                e1.dot(&(s * e1)),
-                e1.dot(&(s * e2)),
-                e2.dot(&(s * e1)),
-                e2.dot(&(s * e2)),
-            );
-            if let Some(inv) = m.try_inverse() {
-                chi += v.dot(&(inv * v));
-            }
+            chi += super::refine::ray_chi2(r, &est.point).unwrap_or(0.0);
         }
         if chi.is_finite() {
             total += chi;

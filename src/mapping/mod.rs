@@ -48,6 +48,7 @@ pub use calibrate::{
 };
 pub use frame::{MappingFrame, RigObservation};
 pub use mapper::{LandmarkMapper, MAX_PAIRWISE_RAYS, MapperOptions, NearbySurrogate};
+pub(crate) use refine::ray_chi2;
 pub use refine::{MapRay, ray_residual_covariance, refine_landmark};
 pub use survey::{
     CameraFrame, GpsSample, SIGMA_LEVEL_RAD, Survey, SurveyOptions, gps_pose_at, landmarks_csv,

@@ -2,11 +2,12 @@
 //! frame propagated into its ray.
 
 use crate::geometry::{Ray, is_finite};
+use crate::synthetic::tangent_basis;
 use crate::triangulation::{
     MIN_RAYS, MIN_RECIPROCAL_CONDITION, RayObservation, TriangulatedPoint, TriangulationError,
     reciprocal_condition,
 };
-use nalgebra::{Matrix3, Matrix6, Vector3, Vector6};
+use nalgebra::{Matrix2, Matrix3, Matrix6, Vector2, Vector3, Vector6};
 
 /// One ray of a landmark in the world frame, with what is needed to propagate the pose
 /// uncertainty of its frame.
@@ -168,6 +169,18 @@ pub(crate) fn ray_residual_tangent(
     let cz1 = c * z1;
     let cz2 = c * z2;
     (z1.dot(&cz1) + d2s2, z2.dot(&cz1), z2.dot(&cz2) + d2s2)
+}
+
+/// The squared Mahalanobis distance (2 dof) of `point` from `ray`: its offset across the
+/// ray against the ray's residual covariance (see [`ray_residual_tangent`]); `None` when
+/// that 2×2 covariance is singular.
+pub(crate) fn ray_chi2(ray: &MapRay, point: &Vector3<f64>) -> Option<f64> {
+    let (e1, e2) = tangent_basis(&ray.ray.direction);
+    let d = point - ray.ray.origin;
+    let v = Vector2::new(e1.dot(&d), e2.dot(&d));
+    let (s11, s12, s22) = ray_residual_tangent(ray, point, &e1, &e2);
+    let inv = Matrix2::new(s11, s12, s12, s22).try_inverse()?;
+    Some(v.dot(&(inv * v)))
 }
 
 /// Solves `A q = b` after the conditioning check of [`crate::triangulation`].

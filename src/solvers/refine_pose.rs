@@ -761,45 +761,35 @@ fn linearity_ratio(
     let v = eigen.eigenvectors.column(worst).into_owned();
     let delta: Vector6<f64> =
         covariance.fixed_view::<6, 3>(0, 0) * v * (LINEARITY_CHECK_SIGMAS / lambda.sqrt());
-    let frozen_cost = |rotation: &UnitQuaternion<f64>,
-                       position: &Vector3<f64>,
-                       weights: Option<&[f64]>|
-     -> Option<(f64, Vec<f64>)> {
-        let rig_from_world = rotation.to_rotation_matrix().into_inner().transpose();
-        let mut cost = 0.0;
-        let mut own = Vec::new();
-        for (i, (ray, point)) in rays.iter().zip(points).enumerate() {
-            let sigma = sigmas.map_or(options.sigma_rad, |s| s[i]);
-            let (r, _, _) = observation(&rig_from_world, position, ray, point)?;
-            let x2 = r.norm_squared();
-            let w = match weights {
-                Some(w) => w[i],
-                None => {
-                    let w = options.loss.evaluate(x2.sqrt()).1;
-                    own.push(w);
-                    w
-                }
-            };
-            cost += w * x2 / (sigma * sigma);
-        }
-        cost.is_finite().then_some((cost, own))
-    };
-    let Some((base, weights)) = frozen_cost(rotation, position, None) else {
-        return 0.0;
-    };
-    let expected = LINEARITY_CHECK_SIGMAS * LINEARITY_CHECK_SIGMAS;
-    let mut ratio = f64::INFINITY;
-    for sign in [1.0, -1.0] {
+    // One pass: each residual at the solution (its loss weight, frozen) and at ±δ.
+    let poses = [1.0, -1.0].map(|sign: f64| {
         let step = delta * sign;
-        let moved_rotation =
+        let moved =
             UnitQuaternion::from_scaled_axis(Vector3::new(step[3], step[4], step[5])) * rotation;
-        let moved_position = position + Vector3::new(step[0], step[1], step[2]);
-        match frozen_cost(&moved_rotation, &moved_position, Some(&weights)) {
-            Some((cost, _)) => ratio = ratio.min((cost - base) / expected),
-            None => return 0.0,
+        (
+            moved.to_rotation_matrix().into_inner().transpose(),
+            position + Vector3::new(step[0], step[1], step[2]),
+        )
+    });
+    let rig_from_world = rotation.to_rotation_matrix().into_inner().transpose();
+    let mut rise = [0.0; 2];
+    for (i, (ray, point)) in rays.iter().zip(points).enumerate() {
+        let sigma = sigmas.map_or(options.sigma_rad, |s| s[i]);
+        let Some((r, _, _)) = observation(&rig_from_world, position, ray, point) else {
+            return 0.0;
+        };
+        let base = r.norm_squared();
+        let information = options.loss.evaluate(base.sqrt()).1 / (sigma * sigma);
+        for (rise, (moved_rig_from_world, moved_position)) in rise.iter_mut().zip(&poses) {
+            let Some((r, _, _)) = observation(moved_rig_from_world, moved_position, ray, point)
+            else {
+                return 0.0;
+            };
+            *rise += information * (r.norm_squared() - base);
         }
     }
-    ratio
+    let ratio = rise[0].min(rise[1]) / (LINEARITY_CHECK_SIGMAS * LINEARITY_CHECK_SIGMAS);
+    if ratio.is_finite() { ratio } else { 0.0 }
 }
 
 /// The damped Gauss–Newton step `−(M + λ·diag(N))⁻¹ g`, with `M` the IRLS matrix `N` or,
