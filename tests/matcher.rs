@@ -262,3 +262,91 @@ fn a_known_vertical_gives_the_same_right_fixes() {
         Err(MatchError::InvalidOption("up_in_rig"))
     );
 }
+
+/// Night frames: lamps among many other lights (75 % false detections), some lamps seen by
+/// two cameras of a non-central rig. The first core of detections then rarely holds three
+/// lamps; the search widens its core until it does, and a landmark in the overlap of two
+/// cameras counts for both.
+#[test]
+fn lamps_among_many_other_lights_are_found_and_seen_twice() {
+    let mut g = rng(23);
+    let world = CityWorld::generate(&mut g, &CityConfig::default());
+    let db = LandmarkDb::new(
+        world
+            .landmarks
+            .iter()
+            .enumerate()
+            .map(|(k, p)| DbLandmark {
+                id: k.to_string(),
+                position_in_world: *p,
+                class: None,
+                sigma_m: 0.0,
+            })
+            .collect(),
+    )
+    .unwrap();
+    let config = FrameConfig {
+        true_detections: 12,
+        false_detections: 36,
+        ..FrameConfig::default()
+    };
+    let options = MatchOptions {
+        sigma_rad: config.sigma_rad,
+        up_in_rig: Some((Vector3::z(), 4f64.to_radians())),
+        ..MatchOptions::default()
+    };
+    // The second camera of an overlap sits 6 cm from the first.
+    let second_camera = Vector3::new(0.04, 0.045, 0.0);
+    let frames = 8;
+    let (mut right, mut doubly_seen) = (0, 0);
+    for _ in 0..frames {
+        let pose = world.random_rig_pose(&mut g);
+        let frame = world.frame(&mut g, &pose, &config);
+        let mut detections: Vec<Detection> = frame
+            .detections
+            .iter()
+            .map(|b| Detection::new(Ray::try_new(Vector3::zeros(), *b).unwrap()))
+            .collect();
+        let mut truth = frame.truth.clone();
+        // The first three true detections are also seen from the second camera.
+        let twice: Vec<usize> = frame.truth.iter().flatten().take(3).copied().collect();
+        for &k in &twice {
+            let direction = pose
+                .inverse_transform_point(&world.true_landmarks[k].into())
+                .coords
+                - second_camera;
+            detections.push(Detection::new(
+                Ray::try_new(second_camera, direction).unwrap(),
+            ));
+            truth.push(Some(k));
+        }
+        let area = SearchArea::around(
+            &(pose.translation.vector + Vector3::new(6.0, -4.0, 0.0)),
+            15.0,
+            1.0,
+        )
+        .unwrap();
+        let r = match_detections(&db, &detections, &area, &options).unwrap();
+        if r.status != MatchStatus::Ok {
+            assert!(r.estimate.is_none());
+            continue;
+        }
+        let e = r.estimate.unwrap();
+        let error = (e.world_from_rig.translation.vector - pose.translation.vector).norm();
+        assert!(error < 0.5, "wrong fix: {error} m");
+        for (a, t) in r.assignment.iter().zip(&truth) {
+            assert!(a.is_none() || a == t, "wrong link {a:?} for {t:?}");
+        }
+        right += 1;
+        doubly_seen += twice
+            .iter()
+            .filter(|&&k| r.assignment.iter().filter(|a| **a == Some(k)).count() == 2)
+            .count();
+    }
+    assert!(right >= 7, "{right} of {frames} frames fixed");
+    // Most of the landmarks seen by both cameras are linked to both detections.
+    assert!(
+        doubly_seen >= 2 * right,
+        "{doubly_seen} double links in {right} fixes"
+    );
+}

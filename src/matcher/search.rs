@@ -2,9 +2,9 @@
 //! refinement and the runner-up.
 
 use super::{
-    DISTINCT_POSITION_M, DISTINCT_ROTATION_RAD, DUPLICATE_ANGLE_RAD, Detection,
+    CORE_GROWTH, DISTINCT_POSITION_M, DISTINCT_ROTATION_RAD, DUPLICATE_ANGLE_RAD, Detection,
     HYPOTHESIS_THRESHOLD_FACTOR, LandmarkDb, MAX_CELLS, MAX_KEPT_HYPOTHESES,
-    MAX_RUNNER_UP_REFINEMENTS, MIN_TRIPLE_ANGLE_RAD, MatchError, MatchEstimate, MatchOptions,
+    MAX_REFINED_HYPOTHESES, MIN_TRIPLE_ANGLE_RAD, MatchError, MatchEstimate, MatchOptions,
     MatchResult, MatchStatus, REFINE_PASSES, STOP_CONFIRMATIONS, STOP_MIN_INLIER_FRACTION,
     SearchArea, UP_CHECK_MARGIN_RAD,
 };
@@ -33,7 +33,17 @@ struct Hypothesis {
 }
 
 /// A refined hypothesis: pose, covariance, RMS residual (rad), inliers, assignment.
-type Refined = (Pose, Matrix6<f64>, f64, usize, Vec<Option<usize>>);
+/// A refined hypothesis.
+struct Refined {
+    pose: Pose,
+    covariance: Matrix6<f64>,
+    rms: f64,
+    inliers: usize,
+    /// Truncated (MSAC) cost over every detection, in units of the squared inlier
+    /// threshold: `Σ min(rᵢ² / tᵢ², 1)`. An outlier costs 1, a perfect inlier 0.
+    cost: f64,
+    assignment: Vec<Option<usize>>,
+}
 
 /// A search cell: its candidates seen from the centre and its lazily built pair tables.
 struct CellData {
@@ -382,19 +392,25 @@ impl Search<'_> {
                 }
             }
         }
-        // One-to-one: the smaller normalised residual keeps a landmark.
+        // One-to-one per camera: the smaller normalised residual keeps a landmark. Rays with
+        // different origins come from different cameras of the rig, and a landmark in the
+        // overlap of two cameras is rightly seen by both.
         let mut order: Vec<usize> = (0..self.scratch_best.len()).collect();
         order.sort_by(|&x, &y| self.scratch_best[x].1.total_cmp(&self.scratch_best[y].1));
-        let mut taken: Vec<usize> = Vec::with_capacity(order.len());
+        let mut taken: Vec<(usize, usize)> = Vec::with_capacity(order.len());
         let mut inliers = 0;
         let mut cost = 0.0;
         for k in order {
             let (d, r) = self.scratch_best[k];
             let Some(index) = assignment[d] else { continue };
-            if taken.contains(&index) {
+            let origin = &self.detections[d].ray.origin;
+            if taken
+                .iter()
+                .any(|&(i, e)| i == index && self.detections[e].ray.origin == *origin)
+            {
                 assignment[d] = None;
             } else {
-                taken.push(index);
+                taken.push((index, d));
                 inliers += 1;
                 cost += r * r;
             }
@@ -478,15 +494,18 @@ impl Search<'_> {
                 self.options.visibility_range_m,
                 &mut near,
             );
-            let (inliers, _, assignment) = self.score(&pose, &near.clone(), 1.0, 0);
-            let done = result.as_ref().is_some_and(|r: &Refined| r.4 == assignment);
-            result = Some((
+            let (inliers, cost, assignment) = self.score(&pose, &near.clone(), 1.0, 0);
+            let done = result
+                .as_ref()
+                .is_some_and(|r: &Refined| r.assignment == assignment);
+            result = Some(Refined {
                 pose,
-                refined.covariance,
-                refined.rms_residual_rad,
+                covariance: refined.covariance,
+                rms: refined.rms_residual_rad,
                 inliers,
+                cost: cost + (self.detections.len() - inliers) as f64,
                 assignment,
-            ));
+            });
             if done {
                 break;
             }
@@ -673,229 +692,275 @@ pub(super) fn run(
             })
         })
         .collect();
-    let core = core_detections(&search.directions, &usable, options.max_core_detections);
     let n_usable = usable.iter().filter(|&&u| u).count();
-    let mut triples = Vec::new();
-    for x in 0..core.len() {
-        for y in x + 1..core.len() {
-            for z in y + 1..core.len() {
-                let t = [core[x], core[y], core[z]];
-                let ok = (0..3).all(|p| {
-                    angle_between(&search.directions[t[p]], &search.directions[t[(p + 1) % 3]])
-                        >= MIN_TRIPLE_ANGLE_RAD
-                });
-                if ok {
-                    triples.push(t);
-                }
-            }
-        }
-    }
-    shuffle(&mut triples, options.seed);
-    triples.truncate(options.max_detection_triples);
-
+    // Every usable detection in farthest-point order; round `r` draws its triples from the
+    // first `max_core_detections · CORE_GROWTH^r` of them.
+    let order = core_detections(&search.directions, &usable, n_usable);
     let position_margin = options.visibility_range_m * 2.0 * search.noise;
     let mut survivors: Vec<[usize; 3]> = Vec::new();
-
-    'triples: for (t, &[a, b, c]) in triples.iter().enumerate() {
-        let bearings = [
-            search.directions[a],
-            search.directions[b],
-            search.directions[c],
-        ];
-        let det_b = bearings[0].dot(&bearings[1].cross(&bearings[2]));
-        // The orientation test is used only when the sign of the detections' determinant is
-        // beyond the noise (each bearing moves by at most `noise`).
-        let det_b_reliable = det_b.abs() > 3.0 * search.noise;
-        let extensions: Vec<usize> = core
-            .iter()
-            .copied()
-            .filter(|&l| l != a && l != b && l != c)
-            .collect();
-        for cell in &mut cell_data {
-            let words = cell.words;
-            for (p, q) in [(a, b), (a, c), (b, c)] {
-                search.ensure_table(cell, p, q);
-            }
-            // Landmark triples (i, j, k) that pass the three pair tables.
-            survivors.clear();
-            {
-                let ab = cell.table(a * n + b);
-                let ac = cell.table(a * n + c);
-                let bc = cell.table(b * n + c);
-                for i in 0..cell.cands.len() {
-                    let ab_i = &ab[i * words..(i + 1) * words];
-                    let ac_i = &ac[i * words..(i + 1) * words];
-                    if ab_i.iter().all(|&w| w == 0) || ac_i.iter().all(|&w| w == 0) {
-                        continue;
+    let mut triple_index = 0;
+    let mut previous = 0;
+    let mut core_size = options.max_core_detections.min(order.len());
+    let mut round = 0u64;
+    'rounds: loop {
+        let core = &order[..core_size];
+        let mut triples = Vec::new();
+        for z in previous.max(2)..core.len() {
+            for y in 1..z {
+                for x in 0..y {
+                    let t = [core[x], core[y], core[z]];
+                    let ok = (0..3).all(|p| {
+                        angle_between(&search.directions[t[p]], &search.directions[t[(p + 1) % 3]])
+                            >= MIN_TRIPLE_ANGLE_RAD
+                    });
+                    if ok {
+                        triples.push(t);
                     }
-                    for_each_bit(ab_i, |j| {
-                        let bc_j = &bc[j * words..(j + 1) * words];
-                        for (wk, (&x, &y)) in ac_i.iter().zip(bc_j).enumerate() {
-                            let mut bits_k = x & y;
-                            while bits_k != 0 {
-                                let k = wk * 64 + bits_k.trailing_zeros() as usize;
-                                bits_k &= bits_k - 1;
-                                if k != i && k != j {
-                                    survivors.push([i, j, k]);
+                }
+            }
+        }
+        shuffle(&mut triples, options.seed.wrapping_add(round));
+        let budget = options
+            .max_detection_triples
+            .saturating_mul(core_size.div_ceil(options.max_core_detections));
+        triples.truncate(budget);
+        for &[a, b, c] in &triples {
+            let t = triple_index;
+            triple_index += 1;
+            let bearings = [
+                search.directions[a],
+                search.directions[b],
+                search.directions[c],
+            ];
+            let det_b = bearings[0].dot(&bearings[1].cross(&bearings[2]));
+            // The orientation test is used only when the sign of the detections' determinant is
+            // beyond the noise (each bearing moves by at most `noise`).
+            let det_b_reliable = det_b.abs() > 3.0 * search.noise;
+            let extensions: Vec<usize> = core
+                .iter()
+                .copied()
+                .filter(|&l| l != a && l != b && l != c)
+                .collect();
+            for cell in &mut cell_data {
+                let words = cell.words;
+                for (p, q) in [(a, b), (a, c), (b, c)] {
+                    search.ensure_table(cell, p, q);
+                }
+                // Landmark triples (i, j, k) that pass the three pair tables.
+                survivors.clear();
+                {
+                    let ab = cell.table(a * n + b);
+                    let ac = cell.table(a * n + c);
+                    let bc = cell.table(b * n + c);
+                    for i in 0..cell.cands.len() {
+                        let ab_i = &ab[i * words..(i + 1) * words];
+                        let ac_i = &ac[i * words..(i + 1) * words];
+                        if ab_i.iter().all(|&w| w == 0) || ac_i.iter().all(|&w| w == 0) {
+                            continue;
+                        }
+                        for_each_bit(ab_i, |j| {
+                            let bc_j = &bc[j * words..(j + 1) * words];
+                            for (wk, (&x, &y)) in ac_i.iter().zip(bc_j).enumerate() {
+                                let mut bits_k = x & y;
+                                while bits_k != 0 {
+                                    let k = wk * 64 + bits_k.trailing_zeros() as usize;
+                                    bits_k &= bits_k - 1;
+                                    if k != i && k != j {
+                                        survivors.push([i, j, k]);
+                                    }
+                                }
+                            }
+                        });
+                    }
+                }
+                if survivors.is_empty() {
+                    continue;
+                }
+                // The quadruple test: other detections that can each be a fourth landmark
+                // consistent with all three pairs.
+                if options.min_extensions > 0 {
+                    for &l in &extensions {
+                        for p in [a, b, c] {
+                            search.ensure_table(cell, p, l);
+                        }
+                    }
+                    let cell_ref = &*cell;
+                    let row = |p: usize, l: usize, i: usize| cell_ref.row(p * n + l, i);
+                    survivors.retain(|&[i, j, k]| {
+                        let mut found = 0;
+                        for &l in &extensions {
+                            if meet_outside(row(a, l, i), row(b, l, j), row(c, l, k), [i, j, k]) {
+                                found += 1;
+                                if found >= options.min_extensions {
+                                    return true;
                                 }
                             }
                         }
+                        false
                     });
                 }
-            }
-            if survivors.is_empty() {
-                continue;
-            }
-            // The quadruple test: other detections that can each be a fourth landmark
-            // consistent with all three pairs.
-            if options.min_extensions > 0 {
-                for &l in &extensions {
-                    for p in [a, b, c] {
-                        search.ensure_table(cell, p, l);
-                    }
-                }
-                let cell_ref = &*cell;
-                let row = |p: usize, l: usize, i: usize| cell_ref.row(p * n + l, i);
-                survivors.retain(|&[i, j, k]| {
-                    let mut found = 0;
-                    for &l in &extensions {
-                        if meet_outside(row(a, l, i), row(b, l, j), row(c, l, k), [i, j, k]) {
-                            found += 1;
-                            if found >= options.min_extensions {
-                                return true;
+                let cell = &*cell;
+                for &[i, j, k] in &survivors {
+                    let cands = &cell.cands;
+                    let centre = &cell.centre;
+                    let points = [
+                        db.landmarks()[cands[i].index].position_in_world,
+                        db.landmarks()[cands[j].index].position_in_world,
+                        db.landmarks()[cands[k].index].position_in_world,
+                    ];
+                    if det_b_reliable {
+                        let normal = (points[1] - points[0]).cross(&(points[2] - points[0]));
+                        let nn = normal.norm();
+                        if nn > 0.0 && (normal.dot(&(centre - points[0])) / nn).abs() > radius {
+                            let det_l = cands[i]
+                                .direction
+                                .dot(&cands[j].direction.cross(&cands[k].direction));
+                            if det_l * det_b < 0.0 {
+                                continue;
                             }
                         }
                     }
-                    false
-                });
-            }
-            let cell = &*cell;
-            for &[i, j, k] in &survivors {
-                let cands = &cell.cands;
-                let centre = &cell.centre;
-                let points = [
-                    db.landmarks()[cands[i].index].position_in_world,
-                    db.landmarks()[cands[j].index].position_in_world,
-                    db.landmarks()[cands[k].index].position_in_world,
-                ];
-                if det_b_reliable {
-                    let normal = (points[1] - points[0]).cross(&(points[2] - points[0]));
-                    let nn = normal.norm();
-                    if nn > 0.0 && (normal.dot(&(centre - points[0])) / nn).abs() > radius {
-                        let det_l = cands[i]
-                            .direction
-                            .dot(&cands[j].direction.cross(&cands[k].direction));
-                        if det_l * det_b < 0.0 {
+                    for pose in p3p(&bearings, &points) {
+                        if (pose.translation.vector - centre).norm() > radius + position_margin {
                             continue;
                         }
-                    }
-                }
-                for pose in p3p(&bearings, &points) {
-                    if (pose.translation.vector - centre).norm() > radius + position_margin {
-                        continue;
-                    }
-                    if let Some((u, tol)) = up {
-                        let up_in_world = pose.rotation * u;
-                        if up_in_world.z.clamp(-1.0, 1.0).acos() > tol + UP_CHECK_MARGIN_RAD {
-                            continue;
+                        if let Some((u, tol)) = up {
+                            let up_in_world = pose.rotation * u;
+                            if up_in_world.z.clamp(-1.0, 1.0).acos() > tol + UP_CHECK_MARGIN_RAD {
+                                continue;
+                            }
                         }
-                    }
-                    // Preemptive verification: enough other core detections must each see,
-                    // under this exact pose, one of the landmarks the pair tables allowed
-                    // for them.
-                    if options.min_extensions > 0 {
-                        let mut verified = 0;
-                        for &l in &extensions {
-                            let rows = [
-                                cell.row(a * n + l, i),
-                                cell.row(b * n + l, j),
-                                cell.row(c * n + l, k),
-                            ];
-                            if search.sees_one_of(&pose, l, &rows, [i, j, k], cands) {
-                                verified += 1;
-                                if verified >= options.min_extensions {
-                                    break;
+                        // Preemptive verification: enough other core detections must each see,
+                        // under this exact pose, one of the landmarks the pair tables allowed
+                        // for them.
+                        if options.min_extensions > 0 {
+                            let mut verified = 0;
+                            for &l in &extensions {
+                                let rows = [
+                                    cell.row(a * n + l, i),
+                                    cell.row(b * n + l, j),
+                                    cell.row(c * n + l, k),
+                                ];
+                                if search.sees_one_of(&pose, l, &rows, [i, j, k], cands) {
+                                    verified += 1;
+                                    if verified >= options.min_extensions {
+                                        break;
+                                    }
                                 }
                             }
+                            if verified < options.min_extensions {
+                                continue;
+                            }
                         }
-                        if verified < options.min_extensions {
-                            continue;
+                        search.hypotheses += 1;
+                        // Only hypotheses that could be the best or a close runner-up are worth
+                        // scoring to the end.
+                        let best = search.kept.first().map_or(0, |h| h.inliers);
+                        let needed = best.saturating_sub(options.ambiguity_margin + 1).max(4);
+                        let (inliers, cost, _) =
+                            search.score(&pose, &cell.indices, HYPOTHESIS_THRESHOLD_FACTOR, needed);
+                        if inliers >= options.min_inliers.min(4) {
+                            search.keep(pose, inliers, cost, t);
                         }
                     }
-                    search.hypotheses += 1;
-                    // Only hypotheses that could be the best or a close runner-up are worth
-                    // scoring to the end.
-                    let best = search.kept.first().map_or(0, |h| h.inliers);
-                    let needed = best.saturating_sub(options.ambiguity_margin + 1).max(4);
-                    let (inliers, cost, _) =
-                        search.score(&pose, &cell.indices, HYPOTHESIS_THRESHOLD_FACTOR, needed);
-                    if inliers >= options.min_inliers.min(4) {
-                        search.keep(pose, inliers, cost, t);
+                    if search.hypotheses >= options.max_hypotheses {
+                        break 'rounds;
                     }
-                }
-                if search.hypotheses >= options.max_hypotheses {
-                    break 'triples;
                 }
             }
+            // Early stop only for a best that explains at least half the usable detections: a
+            // wrong pose on a repetitive layout can be confirmed twice while the true one (with
+            // more inliers) has not been generated yet.
+            let enough = options
+                .min_inliers
+                .max((STOP_MIN_INLIER_FRACTION * n_usable as f64).ceil() as usize);
+            if search
+                .kept
+                .first()
+                .is_some_and(|h| h.confirmations >= STOP_CONFIRMATIONS && h.inliers >= enough)
+            {
+                break 'rounds;
+            }
         }
-        // Early stop only for a best that explains at least half the usable detections: a
-        // wrong pose on a repetitive layout can be confirmed twice while the true one (with
-        // more inliers) has not been generated yet.
-        let enough = options
-            .min_inliers
-            .max((STOP_MIN_INLIER_FRACTION * n_usable as f64).ceil() as usize);
-        if search
-            .kept
-            .first()
-            .is_some_and(|h| h.confirmations >= STOP_CONFIRMATIONS && h.inliers >= enough)
-        {
+        // No early stop: when inliers are few among many detections the core may hold fewer
+        // than three of them, so the next round draws from a larger core, unless the
+        // hypotheses so far already give a decisive fix.
+        if core_size == order.len() {
             break;
         }
+        if conclude(&mut search, cell_data.len()).status == MatchStatus::Ok {
+            break;
+        }
+        previous = core_size;
+        core_size = core_size.saturating_mul(CORE_GROWTH).min(order.len());
+        round += 1;
     }
-    let cells_visited = cell_data.len();
+    Ok(conclude(&mut search, cell_data.len()))
+}
+
+/// The result from the hypotheses kept so far. The strongest are refined: a P3P pose from
+/// three noisy bearings (nearly collinear lamps along a street) may explain fewer
+/// detections than a wrong pose before refinement and all of them after. The refined pose
+/// of least truncated cost is the fix; the runner-up is the distinct pose of least cost (a
+/// hypothesis that does not refine is scored as it is, at the tight threshold).
+fn conclude(search: &mut Search, cells: usize) -> MatchResult {
+    let n = search.detections.len();
+    let options = search.options;
     let hypotheses = search.hypotheses;
     let failed = |status, message: String| {
         let mut r = MatchResult::failed(status, n, message);
-        r.cells = cells_visited;
+        r.cells = cells;
         r.hypotheses = hypotheses;
         r
     };
-
-    // Refine the best; the runner-up is the next whose refined pose is distinct.
     let kept = search.kept.clone();
-    let Some(best_hypothesis) = kept.first() else {
-        return Ok(failed(
+    if kept.is_empty() {
+        return failed(
             MatchStatus::NoMatch,
             "no hypothesis consistent with the detections".to_string(),
-        ));
-    };
-    let Some((pose, covariance, rms, best_score, assignment)) =
-        search.refine(&best_hypothesis.pose)
-    else {
-        return Ok(failed(
-            MatchStatus::NoMatch,
-            "the best hypothesis did not refine".to_string(),
-        ));
-    };
-    let mut runner_up: Option<(usize, Pose)> = None;
-    let mut tried = 0;
-    for h in kept.iter().skip(1) {
-        if tried >= MAX_RUNNER_UP_REFINEMENTS {
-            break;
-        }
-        if same_pose(&h.pose, &pose) {
+        );
+    }
+    let mut refined: Vec<Refined> = Vec::new();
+    let mut unrefined: Vec<(usize, f64, Pose)> = Vec::new();
+    let mut near = Vec::new();
+    for h in kept.iter().take(MAX_REFINED_HYPOTHESES) {
+        if refined.iter().any(|r| same_pose(&r.pose, &h.pose)) {
             continue;
         }
-        tried += 1;
-        let candidate = match search.refine(&h.pose) {
-            Some((p, _, _, score, _)) if !same_pose(&p, &pose) => (score, p),
-            Some(_) => continue,
-            None => (h.inliers.min(best_score), h.pose),
-        };
-        if runner_up.is_none_or(|r| candidate.0 > r.0) {
-            runner_up = Some(candidate);
+        match search.refine(&h.pose) {
+            Some(r) => refined.push(r),
+            None => {
+                search.db.within(
+                    &h.pose.translation.vector,
+                    options.visibility_range_m,
+                    &mut near,
+                );
+                let (inliers, cost, _) = search.score(&h.pose, &near, 1.0, 0);
+                unrefined.push((inliers, cost + (n - inliers) as f64, h.pose));
+            }
         }
     }
+    let Some(best_index) = (0..refined.len()).min_by(|&x, &y| {
+        refined[y]
+            .inliers
+            .cmp(&refined[x].inliers)
+            .then(refined[x].cost.total_cmp(&refined[y].cost))
+    }) else {
+        return failed(
+            MatchStatus::NoMatch,
+            "the best hypothesis did not refine".to_string(),
+        );
+    };
+    let best = refined.swap_remove(best_index);
+    let (pose, best_score) = (best.pose, best.inliers);
+    // The runner-up: the distinct pose of least cost (a hypothesis that does not refine is
+    // scored as it is).
+    let runner_up: Option<(usize, f64, Pose)> = refined
+        .iter()
+        .map(|r| (r.inliers, r.cost, r.pose))
+        .chain(unrefined.iter().copied())
+        .filter(|(_, _, p)| !same_pose(p, &pose))
+        .min_by(|x, y| y.0.cmp(&x.0).then(x.1.total_cmp(&y.1)));
     let mut result = MatchResult {
         status: MatchStatus::Ok,
         message: String::new(),
@@ -903,8 +968,8 @@ pub(super) fn run(
         assignment: vec![None; n],
         best_score,
         runner_up_score: runner_up.map(|r| r.0),
-        runner_up_pose: runner_up.map(|r| r.1),
-        cells: cells_visited,
+        runner_up_pose: runner_up.map(|r| r.2),
+        cells,
         hypotheses,
     };
     if best_score < options.min_inliers {
@@ -913,9 +978,9 @@ pub(super) fn run(
             "the best hypothesis has {best_score} inliers (at least {} needed)",
             options.min_inliers
         );
-        return Ok(result);
+        return result;
     }
-    if let Some((score, _)) = runner_up
+    if let Some((score, _, _)) = runner_up
         && score + options.ambiguity_margin > best_score
     {
         result.status = MatchStatus::Ambiguous;
@@ -923,15 +988,15 @@ pub(super) fn run(
             "two distinct poses with {best_score} and {score} inliers (margin {} needed)",
             options.ambiguity_margin
         );
-        return Ok(result);
+        return result;
     }
-    result.assignment = assignment;
+    result.assignment = best.assignment;
     result.estimate = Some(MatchEstimate {
         world_from_rig: pose,
-        covariance,
-        rms_residual_rad: rms,
+        covariance: best.covariance,
+        rms_residual_rad: best.rms,
     });
-    Ok(result)
+    result
 }
 
 #[cfg(test)]
