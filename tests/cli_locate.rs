@@ -472,6 +472,18 @@ fn demo_simulates_and_replays_the_reference_drive() {
         assert!(out_dir.join("replay").join(name).is_file(), "{name}");
     }
     assert!(out_dir.join("reference/drive.json").is_file());
+    // The image stage: a night drive rendered and replayed from its pixels.
+    let night: Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("night-replay/report.json")).unwrap())
+            .unwrap();
+    assert_eq!(night["images"]["frames"], night["frames"], "{night}");
+    assert_eq!(night["images"]["unusable_images"], 0, "{night}");
+    assert!(
+        night["visual_fix_rate"].as_f64().unwrap() >= 0.99,
+        "{night}"
+    );
+    let h = &night["visual_vs_truth"]["horizontal_m"];
+    assert!(h["cep50"].as_f64().unwrap() <= 0.05, "{h}");
 }
 
 /// Pixel observations through the shipped Ladybug2 calibration: the rays start at the

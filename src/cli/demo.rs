@@ -5,14 +5,12 @@
 //! the summary table and where the report is. The drive is written anew each time (the same
 //! seed gives the same bytes), so the demo never depends on a stale copy.
 //!
-//! With `--images`, then the image pipeline: a night drive of [`DEMO_IMAGES_LENGTH_M`] with
-//! every camera's image rendered into `DIR/night`, replayed from the pixels (`vgps replay
-//! --from-images`: PNG decoding, lamp detection, localization) into `DIR/night-replay`.
-//! Rendering the whole reference drive would write about 6 GB and take longer than the
-//! demo's minute on two cores, so the image stage uses a shorter drive. It is not the
-//! default yet: on lamps alone (plus the clutter the detector also finds) the localizer
-//! acquires its first fix late (35 of 153 frames fixed on seed 1; once acquired it holds
-//! the fix to the end), see docs/cli.md.
+//! Then the image pipeline: a night drive of [`DEMO_IMAGES_LENGTH_M`] with every camera's
+//! image rendered into `DIR/night` (every landmark surveyed, no survey gap), replayed from
+//! the pixels (`vgps replay --from-images`: PNG decoding, lamp detection, localization)
+//! into `DIR/night-replay`. Rendering the whole reference drive would write about 6 GB and
+//! take longer than the demo's minute on two cores, so the image stage uses a shorter
+//! drive. `--no-images` skips it (and its 0.3 GB of PNGs).
 
 use super::CliError;
 use super::replay::{OutputFormat, ReplayArgs};
@@ -38,9 +36,10 @@ pub struct DemoArgs {
     /// Summary format on stdout.
     #[arg(long, value_enum, default_value = "text")]
     pub format: OutputFormat,
-    /// Also run the image stage: render a night drive and replay it from its pixels.
+    /// Skip the image stage (rendering a 300 m night drive, 0.3 GB of PNGs, and replaying
+    /// it from its pixels).
     #[arg(long)]
-    pub images: bool,
+    pub no_images: bool,
 }
 
 /// Runs `vgps demo`.
@@ -65,7 +64,7 @@ pub fn run(args: &DemoArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
     }
     let replay = replay_args(drive_dir, args.out.join("replay"), args.format, false);
     super::replay::run(&replay, out, err)?;
-    if args.images {
+    if !args.no_images {
         run_images(args, out, err)?;
     }
     if args.format == OutputFormat::Text {
@@ -82,8 +81,8 @@ pub fn run(args: &DemoArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
 ///
 /// At night only the lamps are visible (building corners are not rendered), so this drive
 /// surveys every landmark and has no survey gap: with the short preset's 75 % survey and
-/// its gap, too few surveyed lamps are in view for the matcher (it needs
-/// [`crate::matcher::DEFAULT_MIN_INLIERS`]).
+/// its gap, too few surveyed lamps are in view to map surrogates from lamps alone before
+/// the gap.
 fn run_images(args: &DemoArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<(), CliError> {
     let night = args.out.join("night");
     let started = std::time::Instant::now();

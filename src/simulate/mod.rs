@@ -537,19 +537,25 @@ pub fn simulate(sc: &Scenario) -> Result<SimulatedDrive, SimulateError> {
         start_time_s: start + motion.time_at(a),
         end_time_s: start + motion.time_at(b),
     };
-    let outages = vec![
-        outage("survey_gap", gap_start, gap_start + gap_len),
-        outage("canyon", canyon_start, canyon_start + canyon_len),
-    ];
+    // A scenario without a survey gap (length 0) has no survey-gap outage either.
+    let mut outages = Vec::new();
+    if gap_len > 0.0 {
+        outages.push(outage("survey_gap", gap_start, gap_start + gap_len));
+    }
+    outages.push(outage("canyon", canyon_start, canyon_start + canyon_len));
 
     // Survey: everything near the survey gap is unsurveyed, and a random share elsewhere.
-    let gap_points: Vec<Vector2<f64>> = (0..=((gap_len / GAP_SAMPLE_M).ceil() as usize))
-        .map(|k| {
-            route
-                .at(gap_start + (k as f64 * GAP_SAMPLE_M).min(gap_len))
-                .0
-        })
-        .collect();
+    let gap_points: Vec<Vector2<f64>> = if gap_len > 0.0 {
+        (0..=((gap_len / GAP_SAMPLE_M).ceil() as usize))
+            .map(|k| {
+                route
+                    .at(gap_start + (k as f64 * GAP_SAMPLE_M).min(gap_len))
+                    .0
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
     let gap_radius = sc.range_m + SURVEY_GAP_MARGIN_M;
     for l in &mut world.landmarks {
         let xy = l.position_in_enu.xy();

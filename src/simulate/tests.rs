@@ -243,3 +243,20 @@ fn fixes_lag_the_truth_by_the_latency() {
     }
     assert!(checked > 100);
 }
+
+#[test]
+fn no_survey_gap_and_a_full_survey_leave_no_landmark_unsurveyed() {
+    let mut sc = Scenario::preset(Preset::Short, 1);
+    sc.length_m = 300.0;
+    sc.surveyed_fraction = 1.0;
+    sc.survey_gap_m = 0.0;
+    let drive = simulate(&sc).unwrap();
+    assert!(!drive.world.landmarks.is_empty());
+    assert!(drive.world.landmarks.iter().all(|l| l.surveyed));
+    assert!(drive.outages.iter().all(|o| o.kind != "survey_gap"));
+    // With the gap, the landmarks near it are unsurveyed even with a full survey.
+    sc.survey_gap_m = 60.0;
+    let drive = simulate(&sc).unwrap();
+    assert!(drive.world.landmarks.iter().any(|l| !l.surveyed));
+    assert!(drive.outages.iter().any(|o| o.kind == "survey_gap"));
+}
