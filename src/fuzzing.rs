@@ -133,7 +133,7 @@ pub struct MatcherInput {
     /// `sigma_rad`, `inlier_threshold_sigmas`, `visibility_range_m`, `cell_size_m`.
     pub reals: [Num; 4],
     /// `min_inliers`, `ambiguity_margin`, `max_core_detections`, `max_detection_triples`,
-    /// `max_hypotheses`, `min_extensions`.
+    /// `max_hypotheses`, `min_extensions` and `max_rounds` (`c % 4`, `1 + (c / 4) % 4`).
     pub counts: [u8; 6],
     /// The sampling seed.
     pub seed: u64,
@@ -625,6 +625,7 @@ pub fn matcher(data: &[u8]) {
         seed: input.seed,
         up_in_rig: input.up.map(|(u, t)| (vec3(&u), t.get())),
         min_extensions: c[5] % 4,
+        max_rounds: 1 + (c[5] / 4) % 4,
     };
     let Ok(result) = match_detections(&db, &detections, &area, &options) else {
         return;

@@ -105,6 +105,11 @@ pub const SURROGATE_REFRESH_FRAMES: usize = 3;
 /// Surrogates are kept within the visibility range plus this margin of the last fix
 /// (metres), enough for [`SURROGATE_REFRESH_FRAMES`] frames of travel.
 pub const SURROGATE_MARGIN_M: f64 = 20.0;
+/// Default shortest interval between two widened re-acquisitions (seconds of drive time):
+/// after a matcher search over every round of detection triples failed, the next searches
+/// within this interval use the first round only (see [`MatchOptions::max_rounds`]). A
+/// widened search that finds nothing costs up to a second on a night frame of 50 lights.
+pub const DEFAULT_WIDENED_ACQUISITION_INTERVAL_S: f64 = 5.0;
 /// Default tilt of a vehicle's rig from the vertical that re-acquisition allows (radians,
 /// 5°: road grades and body roll stay within it).
 pub const DEFAULT_LEVEL_TOLERANCE_RAD: f64 = 0.087_266_462_599_716_48;
@@ -131,6 +136,9 @@ pub struct LocalizerOptions {
     pub cold_start: bool,
     /// Shortest interval between cold starts (seconds).
     pub cold_start_interval_s: f64,
+    /// Shortest interval between widened re-acquisitions that failed (seconds; see
+    /// [`DEFAULT_WIDENED_ACQUISITION_INTERVAL_S`]).
+    pub widened_acquisition_interval_s: f64,
     /// Map unassociated observations and use surrogate landmarks.
     pub surrogates: bool,
     /// Options of the mapper behind the surrogates.
@@ -154,6 +162,7 @@ impl Default for LocalizerOptions {
             angular_acceleration_rad_s2: DEFAULT_ANGULAR_ACCELERATION_RAD_S2,
             cold_start: true,
             cold_start_interval_s: DEFAULT_COLD_START_INTERVAL_S,
+            widened_acquisition_interval_s: DEFAULT_WIDENED_ACQUISITION_INTERVAL_S,
             surrogates: true,
             mapper: MapperOptions::default(),
             matcher: MatchOptions::default(),
@@ -397,6 +406,8 @@ pub struct Localizer {
     surrogate_candidates: Vec<Candidate>,
     frames_since_refresh: usize,
     last_cold_start_s: Option<f64>,
+    /// Drive time of the last widened matcher search that found no fix.
+    last_failed_widening_s: Option<f64>,
     neighbours: Vec<usize>,
 }
 
@@ -435,6 +446,13 @@ impl Localizer {
         if !(options.cold_start_interval_s.is_finite() && options.cold_start_interval_s >= 0.0) {
             return Err(LocalizerError::InvalidOption("cold_start_interval_s"));
         }
+        if !(options.widened_acquisition_interval_s.is_finite()
+            && options.widened_acquisition_interval_s >= 0.0)
+        {
+            return Err(LocalizerError::InvalidOption(
+                "widened_acquisition_interval_s",
+            ));
+        }
         let mapper = LandmarkMapper::new(options.mapper)
             .map_err(|_| LocalizerError::InvalidOption("mapper"))?;
         Ok(Self {
@@ -447,6 +465,7 @@ impl Localizer {
             surrogate_candidates: Vec::new(),
             frames_since_refresh: 0,
             last_cold_start_s: None,
+            last_failed_widening_s: None,
             neighbours: Vec::new(),
         })
     }
@@ -771,6 +790,9 @@ impl Localizer {
             .collect();
         let mut sigmas: Vec<f64> = observations.iter().map(|o| o.sigma_rad).collect();
         sigmas.sort_by(f64::total_cmp);
+        let widen = self
+            .last_failed_widening_s
+            .is_none_or(|t| (time_s - t).abs() >= self.options.widened_acquisition_interval_s);
         let options = MatchOptions {
             sigma_rad: sigmas[sigmas.len() / 2],
             up_in_rig: self
@@ -778,10 +800,18 @@ impl Localizer {
                 .level_tolerance_rad
                 .map(|tol| (Vector3::z(), tol))
                 .or(self.options.matcher.up_in_rig),
+            max_rounds: if widen {
+                self.options.matcher.max_rounds
+            } else {
+                1
+            },
             ..self.options.matcher
         };
         let result = match_detections(self.map.db(), &detections, &area, &options)
             .map_err(|e| (LocalizerStatus::NoFix, e.to_string()))?;
+        if widen && options.max_rounds > 1 && result.status != MatchStatus::Ok {
+            self.last_failed_widening_s = Some(time_s);
+        }
         let estimate = match result.status {
             MatchStatus::Ok => result.estimate,
             MatchStatus::Ambiguous => {

@@ -137,6 +137,9 @@ fn validate(detections: &[Detection], options: &MatchOptions) -> Result<(), Matc
     if options.ambiguity_margin < 1 {
         return Err(MatchError::InvalidOption("ambiguity_margin"));
     }
+    if options.max_rounds == 0 {
+        return Err(MatchError::InvalidOption("max_rounds"));
+    }
     if options.max_core_detections < 3 {
         return Err(MatchError::InvalidOption("max_core_detections"));
     }
@@ -885,7 +888,7 @@ pub(super) fn run(
         // No early stop: when inliers are few among many detections the core may hold fewer
         // than three of them, so the next round draws from a larger core, unless the
         // hypotheses so far already give a decisive fix.
-        if core_size == order.len() {
+        if core_size == order.len() || round + 1 >= options.max_rounds as u64 {
             break;
         }
         if conclude(&mut search, cell_data.len()).status == MatchStatus::Ok {
