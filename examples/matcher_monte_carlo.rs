@@ -7,9 +7,7 @@
 //! `FALSE_DET`, `SPARSE=1` (the 1,060-landmark city with a prior), `VERBOSE=1`.
 use std::time::Instant;
 use vgps::geometry::Ray;
-use vgps::matcher::{
-    DbLandmark, Detection, LandmarkDb, MatchOptions, MatchStatus, SearchArea, match_detections,
-};
+use vgps::matcher::{Detection, MatchOptions, MatchStatus, SearchArea, match_detections};
 use vgps::synthetic::matcher::{CityConfig, CityWorld, FrameConfig, RIG_HEIGHT_M};
 use vgps::synthetic::rng;
 
@@ -30,20 +28,7 @@ fn main() {
         CityConfig::default()
     };
     let world = CityWorld::generate(&mut r, &config);
-    let db = LandmarkDb::new(
-        world
-            .landmarks
-            .iter()
-            .enumerate()
-            .map(|(k, p)| DbLandmark {
-                id: format!("L{k}"),
-                position_in_world: *p,
-                class: None,
-                sigma_m: 0.0,
-            })
-            .collect(),
-    )
-    .expect("valid landmarks");
+    let db = world.landmark_db().expect("valid landmarks");
     // TRUE_DET / FALSE_DET: detections of landmarks / false detections per frame.
     let env_usize = |name: &str, default: usize| {
         std::env::var(name)

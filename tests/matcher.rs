@@ -150,20 +150,7 @@ fn a_regular_straight_street_is_ambiguous_not_a_guess() {
 fn city_frames_with_a_prior_give_right_fixes_and_no_wrong_ones() {
     let mut g = rng(11);
     let world = CityWorld::generate(&mut g, &CityConfig::default());
-    let db = LandmarkDb::new(
-        world
-            .landmarks
-            .iter()
-            .enumerate()
-            .map(|(k, p)| DbLandmark {
-                id: k.to_string(),
-                position_in_world: *p,
-                class: None,
-                sigma_m: 0.0,
-            })
-            .collect(),
-    )
-    .unwrap();
+    let db = world.landmark_db().unwrap();
     let config = FrameConfig::default();
     let options = MatchOptions {
         sigma_rad: config.sigma_rad,
@@ -203,20 +190,7 @@ fn city_frames_with_a_prior_give_right_fixes_and_no_wrong_ones() {
 fn a_known_vertical_gives_the_same_right_fixes() {
     let mut g = rng(12);
     let world = CityWorld::generate(&mut g, &CityConfig::default());
-    let db = LandmarkDb::new(
-        world
-            .landmarks
-            .iter()
-            .enumerate()
-            .map(|(k, p)| DbLandmark {
-                id: k.to_string(),
-                position_in_world: *p,
-                class: None,
-                sigma_m: 0.0,
-            })
-            .collect(),
-    )
-    .unwrap();
+    let db = world.landmark_db().unwrap();
     let config = FrameConfig::default();
     // The synthetic rig tilts by up to 3°: a 4° tolerance always holds the truth.
     let options = MatchOptions {
@@ -280,20 +254,7 @@ fn a_known_vertical_gives_the_same_right_fixes() {
 fn lamps_among_many_other_lights_are_found_and_seen_twice() {
     let mut g = rng(23);
     let world = CityWorld::generate(&mut g, &CityConfig::default());
-    let db = LandmarkDb::new(
-        world
-            .landmarks
-            .iter()
-            .enumerate()
-            .map(|(k, p)| DbLandmark {
-                id: k.to_string(),
-                position_in_world: *p,
-                class: None,
-                sigma_m: 0.0,
-            })
-            .collect(),
-    )
-    .unwrap();
+    let db = world.landmark_db().unwrap();
     let config = FrameConfig {
         true_detections: 12,
         false_detections: 0,

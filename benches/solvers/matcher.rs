@@ -3,28 +3,9 @@
 use criterion::Criterion;
 use nalgebra::Vector3;
 use vgps::geometry::Ray;
-use vgps::matcher::{
-    DbLandmark, Detection, LandmarkDb, MatchOptions, SearchArea, match_detections,
-};
+use vgps::matcher::{Detection, MatchOptions, SearchArea, match_detections};
 use vgps::synthetic::matcher::{CityConfig, CityWorld, FrameConfig, RIG_HEIGHT_M};
 use vgps::synthetic::rng;
-
-fn db_of(world: &CityWorld) -> LandmarkDb {
-    LandmarkDb::new(
-        world
-            .landmarks
-            .iter()
-            .enumerate()
-            .map(|(k, p)| DbLandmark {
-                id: k.to_string(),
-                position_in_world: *p,
-                class: None,
-                sigma_m: 0.0,
-            })
-            .collect(),
-    )
-    .unwrap()
-}
 
 /// Benchmarks of the matcher with a prior (generic, known vertical) and a cold start.
 pub fn benches(c: &mut Criterion) {
@@ -35,7 +16,7 @@ pub fn benches(c: &mut Criterion) {
         ("cold_1km2", CityConfig::sparse()),
     ] {
         let world = CityWorld::generate(&mut r, &city);
-        let db = db_of(&world);
+        let db = world.landmark_db().unwrap();
         let pose = world.random_rig_pose(&mut r);
         let frame = world.frame(&mut r, &pose, &config);
         let detections: Vec<Detection> = frame

@@ -15,6 +15,7 @@
 
 use super::{normal, perturb_bearing, random_unit_vector};
 use crate::geometry::{Pose, bearing_in_rig};
+use crate::matcher::{DbLandmark, LandmarkDb, MatchError};
 use nalgebra::{Rotation3, Translation3, Vector3};
 use rand::{Rng, RngExt};
 
@@ -130,6 +131,26 @@ pub struct SyntheticFrame {
 }
 
 impl CityWorld {
+    /// The matcher's database of the surveyed landmarks: ids `L<k>` (`k` the index in
+    /// [`CityWorld::landmarks`]), unlabelled, survey σ 0.
+    ///
+    /// # Errors
+    /// Those of [`LandmarkDb::new`] (not for a generated city: its positions are finite).
+    pub fn landmark_db(&self) -> Result<LandmarkDb, MatchError> {
+        LandmarkDb::new(
+            self.landmarks
+                .iter()
+                .enumerate()
+                .map(|(k, p)| DbLandmark {
+                    id: format!("L{k}"),
+                    position_in_world: *p,
+                    class: None,
+                    sigma_m: 0.0,
+                })
+                .collect(),
+        )
+    }
+
     /// Generates the city. Streets run along `x = i·block_m` and `y = j·block_m`; each block's
     /// building fills the block less the half-streets and a 2 m pavement.
     pub fn generate<R: Rng + ?Sized>(rng: &mut R, config: &CityConfig) -> Self {
