@@ -90,3 +90,16 @@ fn triad_of_tiny_directions_is_a_rotation() {
     let u = vgps::geometry::try_unit(&huge).expect("a direction");
     assert!((u.norm() - 1.0).abs() < 1e-15, "|u| = {}", u.norm());
 }
+
+/// `matcher` timeout-73ce5f50: 7 landmarks, 5 detections, a visibility range of 2·10⁶⁴ m and
+/// 1 m cells over a 100 m box: about 10⁶ cells, each solving P3P for every landmark triple
+/// of every detection triple (2.9 s in a release build, over the fuzzer's 10 s with its
+/// sanitizers). `max_hypotheses` counted only the poses scored, not the solves that gave
+/// none; it now bounds the P3P solves (0.3 s). No timing is asserted.
+#[test]
+fn matcher_solves_are_bounded_by_max_hypotheses() {
+    let data = hex(
+        "cdcb13ee013f0000000900004d4d4d4d4d3f4d4d4d4d4d4d4d4d4d4d4d41000000000000004d4d4d4d4d4d4d4d4d4d4d444d4d4d4d4d4d4d4d0500000000000000e0e0e0e0e04d4d4d4d4d4d4d4d4d4d4d0100f7004d4d4d4d4d4d4d4d4d4a4d4d4d4d4d4d4d4dcd4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d0d4d1100000075000000004d4d4a4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4dfeffffffffffffff4d4d4d4d5b4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d0000f948b68d36bfd3b4533de6f7f502621170ac00000008e0ad06294d4d4d4d0100f7004d4db74d4d4d4d4d4d4a4d4d4d4d4d4d4d4dcd4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d0d4d11000000000000004d4d4a4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d090909090909090909ae09090909090909090909094d4d4dffffffffffffff054d4d4d090909090109090909ae0909090909090909099e094d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d63ffffff69ffffffffffffffffffffff63636363636363636363",
+    );
+    vgps::fuzzing::matcher(&data);
+}

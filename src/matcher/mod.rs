@@ -114,7 +114,7 @@ pub const DEFAULT_MAX_CORE_DETECTIONS: usize = 10;
 /// Default cap on the detection triples tried.
 pub const DEFAULT_MAX_DETECTION_TRIPLES: usize = 120;
 
-/// Default cap on the P3P hypotheses scored (bounds the time of one frame).
+/// Default cap on the P3P solves and hypotheses scored (bounds the time of one frame).
 pub const DEFAULT_MAX_HYPOTHESES: usize = 2_000_000;
 
 /// With a known vertical, P3P poses whose up direction is farther than the tolerance plus
@@ -260,9 +260,11 @@ pub struct MatchOptions {
     pub ambiguity_margin: usize,
     /// Detection triples are drawn from this many well-spread detections (at least 3).
     pub max_core_detections: usize,
-    /// Most detection triples tried.
+    /// Most detection triples tried in the first round (a later round's budget grows with
+    /// its core: × core size / `max_core_detections`).
     pub max_detection_triples: usize,
-    /// Most P3P hypotheses scored.
+    /// Most P3P solves (landmark triples solved), and so most hypotheses scored: bounds the
+    /// time of one frame whatever the area and the landmarks.
     pub max_hypotheses: usize,
     /// Seed of the order of the detection triples (fixed: same input, same result).
     pub seed: u64,

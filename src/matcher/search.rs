@@ -702,6 +702,8 @@ pub(super) fn run(
     let position_margin = options.visibility_range_m * 2.0 * search.noise;
     let mut survivors: Vec<[usize; 3]> = Vec::new();
     let mut triple_index = 0;
+    // P3P solves (every hypothesis scored comes from one): the budget of the frame.
+    let mut solves = 0usize;
     let mut previous = 0;
     let mut core_size = options.max_core_detections.min(order.len());
     let mut round = 0u64;
@@ -823,6 +825,7 @@ pub(super) fn run(
                             }
                         }
                     }
+                    solves += 1;
                     for pose in p3p(&bearings, &points) {
                         if (pose.translation.vector - centre).norm() > radius + position_margin {
                             continue;
@@ -866,7 +869,7 @@ pub(super) fn run(
                             search.keep(pose, inliers, cost, t);
                         }
                     }
-                    if search.hypotheses >= options.max_hypotheses {
+                    if solves >= options.max_hypotheses {
                         break 'rounds;
                     }
                 }
