@@ -103,3 +103,54 @@ fn matcher_solves_are_bounded_by_max_hypotheses() {
     );
     vgps::fuzzing::matcher(&data);
 }
+
+/// `matcher` timeout-5b924912: two landmarks and a 34 km × 9 km area of 28 m cells (377,000
+/// cells, within `MAX_CELLS`): every cell was sorted by distance (two norms per comparison)
+/// and queried in the R*-tree before finding that no cell has three candidates (69 ms in a
+/// release build, over the fuzzer's 10 s with its sanitizers). The search now asks the
+/// R*-tree once whether three landmarks are within reach of the whole area (9.8 ms, the
+/// rest is generating the cells). The status must be `no_landmarks_in_range`.
+#[test]
+fn matcher_with_no_landmarks_within_reach_returns_at_once() {
+    let data = hex(
+        "cdcb13ee010000000081916eb84b7b00004d4d4d4d4d4d4d4d4d4d4d4d41000000000000004d4d4d4d4d4d4d4d4d4d4d444d4d00000000000000040000e0e00000e0e0e0e0e04d4d4d4d4d4d4d4d4d4d4d010000004d4d4d4d4d4d4d4d4d4a4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4dd3d3d3d3d3d3d3d3d3d3d3d3d3d3d3d3d3d3060606060606280100001c1c1c1c1c1b1c1c1cc0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0e0c0c0c0c0c0c0c0c0c4c0c0c0c0c0c0c0c0c0c0c01c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1ce4e3e3e3e3e3e3e31c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c00000000060606060606ae0606060606060000064d4d4d4d",
+    );
+    vgps::fuzzing::matcher(&data);
+    use nalgebra::Vector3;
+    use vgps::geometry::Ray;
+    use vgps::matcher::{DbLandmark, Detection, LandmarkDb, MatchOptions, MatchStatus, SearchArea};
+    let db = LandmarkDb::new(
+        [
+            Vector3::new(0.0, 0.0, 6.0),
+            Vector3::new(30.0, 0.0, 6.0),
+            Vector3::new(0.0, 30.0, 6.0),
+        ]
+        .iter()
+        .enumerate()
+        .map(|(k, p)| DbLandmark {
+            id: k.to_string(),
+            position_in_world: *p,
+            class: None,
+            sigma_m: 0.0,
+        })
+        .collect(),
+    )
+    .unwrap();
+    let detections: Vec<Detection> = [Vector3::x(), Vector3::y(), Vector3::z()]
+        .iter()
+        .map(|d| Detection::new(Ray::try_new(Vector3::zeros(), *d).unwrap()))
+        .collect();
+    // A large area 20 km away: no landmark within its reach.
+    let area = SearchArea::try_new(
+        Vector3::new(20_000.0, 0.0, 0.0),
+        Vector3::new(30_000.0, 9_000.0, 10.0),
+    )
+    .unwrap();
+    let options = MatchOptions {
+        cell_size_m: 28.0,
+        ..MatchOptions::default()
+    };
+    let r = vgps::matcher::match_detections(&db, &detections, &area, &options).unwrap();
+    assert_eq!(r.status, MatchStatus::NoLandmarksInRange);
+    assert_eq!(r.cells, 0);
+}

@@ -33,6 +33,10 @@ struct Hypothesis {
 }
 
 /// A refined hypothesis: pose, covariance, RMS residual (rad), inliers, assignment.
+/// The message of [`MatchStatus::NoLandmarksInRange`].
+const NO_LANDMARKS_IN_RANGE: &str =
+    "fewer than 3 landmarks within the visibility range of the search area";
+
 /// A refined hypothesis.
 struct Refined {
     pose: Pose,
@@ -612,12 +616,25 @@ pub(super) fn run(
     let mut near = Vec::new();
     let mut cell_data: Vec<CellData> = Vec::new();
     let area_centre = area.center();
-    let mut centres = centres;
-    centres.sort_by(|x, y| {
-        (x - area_centre)
-            .norm()
-            .total_cmp(&(y - area_centre).norm())
-    });
+    // Fewer than three landmarks within reach of the whole area: no cell to visit.
+    let reach =
+        0.5 * (area.max_in_world - area.min_in_world).norm() + radius + options.visibility_range_m;
+    if reach.is_finite() {
+        db.within(&area_centre, reach, &mut near);
+        if near.len() < 3 {
+            return Ok(MatchResult::failed(
+                MatchStatus::NoLandmarksInRange,
+                n,
+                NO_LANDMARKS_IN_RANGE,
+            ));
+        }
+    }
+    let mut keyed: Vec<(f64, Vector3<f64>)> = centres
+        .into_iter()
+        .map(|c| ((c - area_centre).norm(), c))
+        .collect();
+    keyed.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let centres: Vec<Vector3<f64>> = keyed.into_iter().map(|(_, c)| c).collect();
     let half_horizontal = 0.5 * step.xy().norm();
     let half_vertical = 0.5 * step.z;
     for centre in &centres {
@@ -681,7 +698,7 @@ pub(super) fn run(
         return Ok(MatchResult::failed(
             MatchStatus::NoLandmarksInRange,
             n,
-            "fewer than 3 landmarks within the visibility range of the search area",
+            NO_LANDMARKS_IN_RANGE,
         ));
     }
 
