@@ -42,7 +42,11 @@ impl Table {
         // Line numbers are counted here from the byte offsets: the csv crate's own line
         // counter skips comment lines, and its offsets point before skipped blank lines.
         // Newline offsets, so that a line number costs a binary search (not a rescan).
-        let newlines: Vec<usize> = (0..bytes.len()).filter(|&i| bytes[i] == b'\n').collect();
+        let newlines: Vec<usize> = bytes
+            .iter()
+            .enumerate()
+            .filter_map(|(i, &b)| (b == b'\n').then_some(i))
+            .collect();
         let line_of = |byte: u64| -> u64 {
             let mut start = usize::try_from(byte).unwrap_or(usize::MAX).min(bytes.len());
             while start < bytes.len() {
@@ -61,7 +65,9 @@ impl Table {
         let mut csv_reader = csv::ReaderBuilder::new()
             .has_headers(false)
             .flexible(true)
-            .trim(csv::Trim::All)
+            // Fields are trimmed below (`str::trim`, as `csv::Trim::All` does, but without
+            // the csv crate's copy of every record).
+            .trim(csv::Trim::None)
             .comment(Some(b'#'))
             .from_reader(bytes.as_slice());
         // One record buffer reused for every row (the same parsing, trimming and UTF-8
@@ -84,7 +90,7 @@ impl Table {
         };
         // Every record is read before the header is checked (a CSV error anywhere in the
         // file is reported first, as when the records were collected at once).
-        let header = record.clone();
+        let header: Vec<String> = record.iter().map(|f| f.trim().to_string()).collect();
         let mut text = String::with_capacity(bytes.len());
         let mut fields = Vec::with_capacity(newlines.len() * header.len());
         let mut rows = Vec::with_capacity(newlines.len());
@@ -92,13 +98,13 @@ impl Table {
             let first = fields.len();
             for field in &record {
                 let start = text.len();
-                text.push_str(field);
+                text.push_str(field.trim());
                 fields.push((start, text.len()));
             }
             rows.push((line, first, fields.len()));
         }
         let mut columns: Vec<String> = Vec::with_capacity(header.len());
-        for (k, name) in header.iter().enumerate() {
+        for (k, name) in header.iter().map(String::as_str).enumerate() {
             if name.is_empty() {
                 return Err(InputError::field(
                     path,
