@@ -12,6 +12,7 @@ mod matcher;
 mod p3p;
 mod p3p_cosines;
 mod refine_pose;
+mod replay;
 mod robust;
 mod synthetic;
 mod triangulation;
@@ -29,6 +30,7 @@ criterion_group!(
     p3p::benches,
     p3p_cosines::benches,
     refine_pose::benches,
+    replay::benches,
     robust::benches,
     synthetic::benches,
     triangulation::benches,

@@ -78,10 +78,11 @@ pub struct ReplayArgs {
 }
 
 /// The detections of one frame, or why there are none; `unusable_images` counts the
-/// frame's images that could not be used (`None`: the detections came from a file).
-enum FrameDetections {
+/// frame's images that could not be used (`None`: the detections came from a file, and are
+/// borrowed from the drive).
+enum FrameDetections<'a> {
     Ok {
-        detections: Vec<crate::drive::Detection>,
+        detections: std::borrow::Cow<'a, [crate::drive::Detection]>,
         unusable_images: Option<u32>,
         problems: Option<String>,
     },
@@ -91,10 +92,10 @@ enum FrameDetections {
     },
 }
 
-impl FrameDetections {
-    fn from_file(detections: Vec<crate::drive::Detection>) -> Self {
+impl<'a> FrameDetections<'a> {
+    fn from_file(detections: &'a [crate::drive::Detection]) -> Self {
         Self::Ok {
-            detections,
+            detections: std::borrow::Cow::Borrowed(detections),
             unusable_images: None,
             problems: None,
         }
@@ -182,13 +183,11 @@ pub fn run(args: &ReplayArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resul
             batch
                 .iter()
                 .map(|f| match drive.status(f.frame) {
-                    FrameStatus::Ok => {
-                        FrameDetections::from_file(drive.detections(f.frame).to_vec())
-                    }
+                    FrameStatus::Ok => FrameDetections::from_file(drive.detections(f.frame)),
                     FrameStatus::BadRows(messages) => {
                         // The frame's readable rows are still used; the bad rows are reported.
                         let _ = writeln!(err, "vgps: warning: {}", messages.join("; "));
-                        FrameDetections::from_file(drive.detections(f.frame).to_vec())
+                        FrameDetections::from_file(drive.detections(f.frame))
                     }
                 })
                 .collect()
@@ -346,7 +345,7 @@ fn detect_batch(
     drive: &Drive,
     batch: &[crate::drive::Frame],
     threads: usize,
-) -> Vec<FrameDetections> {
+) -> Vec<FrameDetections<'static>> {
     let detector = LampDetector::default();
     let chunk = batch.len().div_ceil(threads).max(1);
     std::thread::scope(|scope| {
@@ -385,7 +384,7 @@ fn detect_frame(
     drive: &Drive,
     frame: &crate::drive::Frame,
     detector: &LampDetector,
-) -> FrameDetections {
+) -> FrameDetections<'static> {
     if frame.images.iter().all(Option::is_none) {
         return FrameDetections::Bad {
             message: "no images and no detections".into(),
@@ -404,7 +403,7 @@ fn detect_frame(
         // show no lamp: the localizer then reports the frame's status), and counted.
         FrameDetections::Ok {
             problems: (!result.problems.is_empty()).then(|| result.problem_text()),
-            detections: result.detections,
+            detections: std::borrow::Cow::Owned(result.detections),
             unusable_images,
         }
     }

@@ -368,7 +368,7 @@ impl Drive {
     }
 
     fn index_detections(&mut self, rows: Vec<DetectionRow>) {
-        let mut good: Vec<Detection> = Vec::new();
+        let mut good: Vec<Detection> = Vec::with_capacity(rows.len());
         for row in rows {
             match row {
                 DetectionRow::Ok(d) if self.frame_index(d.frame).is_some() => good.push(d),

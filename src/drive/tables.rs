@@ -143,7 +143,7 @@ pub(crate) fn detections_from_text(
         expected,
     )?;
     table.require(&["frame", "camera", "u", "v"], expected)?;
-    let mut out = Vec::new();
+    let mut out = Vec::with_capacity(table.len());
     for row in table.rows() {
         let row = match row {
             Ok(r) => r,

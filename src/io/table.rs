@@ -7,11 +7,19 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 
 /// A parsed CSV file: its header and its data rows with their 1-based line numbers.
+///
+/// The (trimmed) fields of every data row are stored back to back in one string, so that a
+/// file of a hundred thousand rows costs a few allocations, not three per row.
 pub(crate) struct Table {
     pub(crate) path: PathBuf,
     pub(crate) header_line: u64,
     columns: Vec<String>,
-    rows: Vec<(u64, StringRecord)>,
+    /// Every data field, concatenated in file order.
+    text: String,
+    /// Byte range of each data field in `text`, in file order.
+    fields: Vec<(usize, usize)>,
+    /// Each data row: its line, and the range of its fields in `fields`.
+    rows: Vec<(u64, usize, usize)>,
 }
 
 impl Table {
@@ -34,7 +42,11 @@ impl Table {
         // Line numbers are counted here from the byte offsets: the csv crate's own line
         // counter skips comment lines, and its offsets point before skipped blank lines.
         // Newline offsets, so that a line number costs a binary search (not a rescan).
-        let newlines: Vec<usize> = (0..bytes.len()).filter(|&i| bytes[i] == b'\n').collect();
+        let newlines: Vec<usize> = bytes
+            .iter()
+            .enumerate()
+            .filter_map(|(i, &b)| (b == b'\n').then_some(i))
+            .collect();
         let line_of = |byte: u64| -> u64 {
             let mut start = usize::try_from(byte).unwrap_or(usize::MAX).min(bytes.len());
             while start < bytes.len() {
@@ -53,17 +65,22 @@ impl Table {
         let mut csv_reader = csv::ReaderBuilder::new()
             .has_headers(false)
             .flexible(true)
-            .trim(csv::Trim::All)
+            // Fields are trimmed below (`str::trim`, as `csv::Trim::All` does, but without
+            // the csv crate's copy of every record).
+            .trim(csv::Trim::None)
             .comment(Some(b'#'))
             .from_reader(bytes.as_slice());
-        let mut records = Vec::new();
-        for result in csv_reader.records() {
-            let record = result.map_err(|e| csv_error(path, &e, &line_of))?;
-            let line = record.position().map_or(0, |p| line_of(p.byte()));
-            records.push((line, record));
-        }
-        let mut iter = records.into_iter();
-        let Some((header_line, header)) = iter.next() else {
+        // One record buffer reused for every row (the same parsing, trimming and UTF-8
+        // checks as `records()`, without an allocation per row).
+        let mut record = StringRecord::new();
+        let mut next_record = |record: &mut StringRecord| -> Result<Option<u64>, InputError> {
+            match csv_reader.read_record(record) {
+                Ok(true) => Ok(Some(record.position().map_or(0, |p| line_of(p.byte())))),
+                Ok(false) => Ok(None),
+                Err(e) => Err(csv_error(path, &e, &line_of)),
+            }
+        };
+        let Some(header_line) = next_record(&mut record)? else {
             return Err(InputError::field(
                 path,
                 1,
@@ -71,8 +88,23 @@ impl Table {
                 format!("the file is empty (expected a header line `{expected}`)"),
             ));
         };
+        // Every record is read before the header is checked (a CSV error anywhere in the
+        // file is reported first, as when the records were collected at once).
+        let header: Vec<String> = record.iter().map(|f| f.trim().to_string()).collect();
+        let mut text = String::with_capacity(bytes.len());
+        let mut fields = Vec::with_capacity(newlines.len() * header.len());
+        let mut rows = Vec::with_capacity(newlines.len());
+        while let Some(line) = next_record(&mut record)? {
+            let first = fields.len();
+            for field in &record {
+                let start = text.len();
+                text.push_str(field.trim());
+                fields.push((start, text.len()));
+            }
+            rows.push((line, first, fields.len()));
+        }
         let mut columns: Vec<String> = Vec::with_capacity(header.len());
-        for (k, name) in header.iter().enumerate() {
+        for (k, name) in header.iter().map(String::as_str).enumerate() {
             if name.is_empty() {
                 return Err(InputError::field(
                     path,
@@ -106,8 +138,15 @@ impl Table {
             path: path.to_path_buf(),
             header_line,
             columns,
-            rows: iter.collect(),
+            text,
+            fields,
+            rows,
         })
+    }
+
+    /// The number of data rows.
+    pub(crate) fn len(&self) -> usize {
+        self.rows.len()
     }
 
     /// True when the header has this column.
@@ -135,31 +174,33 @@ impl Table {
 
     /// The data rows in file order, each checked for its field count.
     pub(crate) fn rows(&self) -> impl Iterator<Item = Result<Row<'_>, InputError>> {
-        self.rows.iter().map(move |(line, record)| {
-            let (n, m) = (record.len(), self.columns.len());
+        self.rows.iter().map(move |&(line, first, end)| {
+            let fields = &self.fields[first..end];
+            let (n, m) = (fields.len(), self.columns.len());
             if n < m {
                 return Err(InputError::field(
                     &self.path,
-                    *line,
+                    line,
                     &self.columns[n],
                     format!("missing value: the row has {n} fields, the header has {m}"),
                 ));
             }
             if n > m {
+                let (a, b) = fields[m];
                 return Err(InputError::field(
                     &self.path,
-                    *line,
+                    line,
                     format!("column {}", m + 1),
                     format!(
                         "unexpected extra value `{}`: the row has {n} fields, the header has {m}",
-                        &record[m]
+                        &self.text[a..b]
                     ),
                 ));
             }
             Ok(Row {
                 table: self,
-                line: *line,
-                record,
+                line,
+                fields,
             })
         })
     }
@@ -169,7 +210,8 @@ impl Table {
 pub(crate) struct Row<'a> {
     table: &'a Table,
     pub(crate) line: u64,
-    record: &'a StringRecord,
+    /// Byte ranges of the row's fields in the table's text.
+    fields: &'a [(usize, usize)],
 }
 
 impl Row<'_> {
@@ -181,7 +223,8 @@ impl Row<'_> {
     /// The trimmed text of a column, or `None` when the header lacks the column.
     pub(crate) fn raw(&self, column: &str) -> Option<&str> {
         let k = self.table.columns.iter().position(|c| c == column)?;
-        self.record.get(k)
+        let &(a, b) = self.fields.get(k)?;
+        self.table.text.get(a..b)
     }
 
     /// A non-empty text value of an optional column (`None` when absent or empty).

@@ -208,6 +208,12 @@ pub const OUTPUT_FILES: [&str; 10] = [
 /// Computes the report and writes every output into `dir` (created if missing), each file
 /// atomically (a temporary file in `dir`, then a rename over the target).
 ///
+/// The files are rendered on up to [`std::thread::available_parallelism`] threads (each
+/// file by one thread, so every file is the same as when rendered alone); nothing is
+/// written unless every file could be rendered. They are then written, also in parallel:
+/// a file that cannot be written does not keep the others from being written, and the
+/// error names the first such file in [`OUTPUT_FILES`] order.
+///
 /// Returns the report and the paths written ([`OUTPUT_FILES`] in order).
 ///
 /// # Errors
@@ -223,25 +229,68 @@ pub fn write_outputs(
         reason: e.to_string(),
     })?;
     let report = Report::compute(drive, records);
-    let contents: [Vec<u8>; 10] = [
-        fixes_csv(drive, records).into_bytes(),
-        report.to_json().into_bytes(),
-        report_html(drive, records, &report).into_bytes(),
-        track_geojson(drive, records).into_bytes(),
-        track_kml(drive, records).into_bytes(),
-        track_gpx(drive, records).into_bytes(),
-        fixes_nmea(records).into_bytes(),
-        plot_track_png(drive, records)?,
-        plot_error_png(drive, records)?,
-        summary_table(&report).into_bytes(),
-    ];
-    let mut written = Vec::with_capacity(OUTPUT_FILES.len());
-    for (name, bytes) in OUTPUT_FILES.iter().zip(contents.iter()) {
-        let path = dir.join(name);
-        write_atomic(&path, bytes)?;
-        written.push(path);
-    }
-    Ok((report, written))
+    let render = |k: usize| -> Result<Vec<u8>, ReportError> {
+        Ok(match OUTPUT_FILES[k] {
+            "fixes.csv" => fixes_csv(drive, records).into_bytes(),
+            "report.json" => report.to_json().into_bytes(),
+            "report.html" => report_html(drive, records, &report).into_bytes(),
+            "track.geojson" => track_geojson(drive, records).into_bytes(),
+            "track.kml" => track_kml(drive, records).into_bytes(),
+            "track.gpx" => track_gpx(drive, records).into_bytes(),
+            "fixes.nmea" => fixes_nmea(records).into_bytes(),
+            "track.png" => plot_track_png(drive, records)?,
+            "error.png" => plot_error_png(drive, records)?,
+            _ => summary_table(&report).into_bytes(),
+        })
+    };
+    let contents = in_parallel(&RENDER_ORDER, render)
+        .into_iter()
+        .collect::<Result<Vec<Vec<u8>>, ReportError>>()?;
+    let paths: Vec<PathBuf> = OUTPUT_FILES.iter().map(|name| dir.join(name)).collect();
+    let all: [usize; OUTPUT_FILES.len()] = std::array::from_fn(|k| k);
+    in_parallel(&all, |k| write_atomic(&paths[k], &contents[k]))
+        .into_iter()
+        .collect::<Result<Vec<()>, ReportError>>()?;
+    Ok((report, paths))
+}
+
+/// The indices of [`OUTPUT_FILES`] in the order they are handed to the rendering threads:
+/// the slowest first (the GeoJSON track, then the tables), so that the threads finish
+/// together.
+const RENDER_ORDER: [usize; OUTPUT_FILES.len()] = [3, 0, 4, 6, 2, 5, 8, 7, 1, 9];
+
+/// Runs `job(k)` for every `k` of `order` on up to `available_parallelism` threads (the
+/// calling thread is one of them), each thread taking the next index when it is done;
+/// returns the results indexed by `k` (`order` must be a permutation of `0..order.len()`).
+fn in_parallel<T: Send>(order: &[usize], job: impl Fn(usize) -> T + Sync) -> Vec<T> {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let threads = std::thread::available_parallelism()
+        .map_or(1, std::num::NonZeroUsize::get)
+        .clamp(1, order.len().max(1));
+    let next = AtomicUsize::new(0);
+    let work = || {
+        let mut done = Vec::new();
+        while let Some(&k) = order.get(next.fetch_add(1, Ordering::Relaxed)) {
+            done.push((k, job(k)));
+        }
+        done
+    };
+    let mut done: Vec<(usize, T)> = std::thread::scope(|scope| {
+        let helpers: Vec<_> = (1..threads).map(|_| scope.spawn(work)).collect();
+        let mut done = work();
+        for helper in helpers {
+            // A helper that panicked re-raises its panic here, as the job would have on
+            // the calling thread.
+            done.extend(
+                helper
+                    .join()
+                    .unwrap_or_else(|p| std::panic::resume_unwind(p)),
+            );
+        }
+        done
+    });
+    done.sort_by_key(|&(k, _)| k);
+    done.into_iter().map(|(_, t)| t).collect()
 }
 
 #[cfg(test)]
