@@ -154,3 +154,42 @@ fn matcher_with_no_landmarks_within_reach_returns_at_once() {
     assert_eq!(r.status, MatchStatus::NoLandmarksInRange);
     assert_eq!(r.cells, 0);
 }
+
+/// `matcher` timeout-40a26b25: 7 landmarks, a visibility range of 2·10⁶⁴ m and 0.53 m cells:
+/// every one of the (then allowed) 10⁶ cells had all 7 landmarks as candidates and built its
+/// angle and pair tables (2.1 s in a release build). `MAX_CELLS` is now 250,000 (a cold
+/// start over 4 km² at 10 m); larger areas are `MatchError::AreaTooLarge`.
+#[test]
+fn matcher_area_of_a_million_cells_is_refused() {
+    let data = hex(
+        "cdcb25ee0100000000ffffff060900004d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d41000000000000004d4d4d4d4d4d4d4d4d4d4d444d4d4d4d4d4d4d4d0500000000000000e0e0e0e0e04d4d4d4d4d4d4d4d4d4d4d0100f7004d4d4d4d4d4d4d4d4d4a4d4d4d4d4d4d4d4dcd4d4d4d4d4d4d4d4d4d4d4db3b2b2ba4d4d4d4d4d4d004d4d4d4d5d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d5d4d0d4d1100000075000000004d4d4a4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4dfeffffffffffffff4d4d4d4d5b4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d41000000000000004d4d4d4d4d4d4d4d4d4d4d444d4d4d4d4d4d4d4d000008e0ad06294d4d4d4d0100f7004d4d4d4d4d4d4d4d4d4a4d4d4d4d4d4d4d4dcd4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4daa4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d0d4d1100000000004d4d00004a4d234d4d4d4d4d4d494d4d4d4d4d4d4d4d4d090909090909090909ae09090909090909090909094d4d4dffffffffffffff054d4d4d0909d9d94d4d0909e0e0e03f4d4d4d4d4d4d4d4d4d4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c09090909ffffffffffffffffff63636363636363636363",
+    );
+    vgps::fuzzing::matcher(&data);
+    use nalgebra::Vector3;
+    use vgps::geometry::Ray;
+    use vgps::matcher::{DbLandmark, Detection, LandmarkDb, MatchError, MatchOptions, SearchArea};
+    let db = LandmarkDb::new(
+        (0..7)
+            .map(|k| DbLandmark {
+                id: k.to_string(),
+                position_in_world: Vector3::new(10.0 * k as f64, 5.0 * (k % 3) as f64, 6.0),
+                class: None,
+                sigma_m: 0.0,
+            })
+            .collect(),
+    )
+    .unwrap();
+    let detections: Vec<Detection> = [Vector3::x(), Vector3::y(), Vector3::z()]
+        .iter()
+        .map(|d| Detection::new(Ray::try_new(Vector3::zeros(), *d).unwrap()))
+        .collect();
+    let area = SearchArea::around(&Vector3::zeros(), 50.0, 50.0).unwrap();
+    let options = MatchOptions {
+        cell_size_m: 1.0,
+        ..MatchOptions::default()
+    };
+    assert_eq!(
+        vgps::matcher::match_detections(&db, &detections, &area, &options),
+        Err(MatchError::AreaTooLarge(1_000_000))
+    );
+}
