@@ -48,6 +48,12 @@ pub const PNG_LIMITS: DecodeLimits = DecodeLimits {
 /// Most landmarks and detections handed to the matcher by [`matcher`].
 pub const MATCHER_MAX_ITEMS: usize = 48;
 
+/// The matcher target skips areas of more cells than this: each cell builds its candidate
+/// tables, and a search of [`crate::matcher::MAX_CELLS`] cells around landmarks visible from
+/// everywhere takes about 0.3 s in a release build, over the fuzzer's 10 s with its
+/// sanitizers (three timeouts of that kind were found and bounded: docs/fuzzing.md).
+pub const MATCHER_MAX_FUZZ_CELLS: f64 = 20_000.0;
+
 /// Most rays or vector pairs handed to the triangulation and attitude solvers.
 pub const MAX_OBSERVATIONS: usize = 16;
 
@@ -611,6 +617,11 @@ pub fn matcher(data: &[u8]) {
         return;
     };
     let [sigma, threshold, range, cell] = input.reals.map(Num::get);
+    let extent = area.max_in_world - area.min_in_world;
+    let cells: f64 = (0..3).map(|k| (extent[k] / cell).ceil().max(1.0)).product();
+    if cell > 0.0 && cell.is_finite() && cells > MATCHER_MAX_FUZZ_CELLS {
+        return;
+    }
     let c = input.counts.map(usize::from);
     let options = MatchOptions {
         sigma_rad: sigma,

@@ -193,3 +193,17 @@ fn matcher_area_of_a_million_cells_is_refused() {
         Err(MatchError::AreaTooLarge(1_000_000))
     );
 }
+
+/// `matcher` timeout-5b5ed533: the input of timeout-73ce5f50 again, now with 250,000 cells
+/// (`MAX_CELLS`), each with all 7 landmarks as candidates: 0.27 s in a release build, a
+/// bounded search, but over the fuzzer's 10 s with its sanitizers. The target now skips
+/// areas of more than `MATCHER_MAX_FUZZ_CELLS` cells (the library bounds the rest by
+/// `MAX_CELLS`). Replayed through the target.
+#[test]
+fn matcher_target_skips_areas_of_many_cells() {
+    let data = hex(
+        "cdcb13ee013f0000000900004d4d4d4d4d3f4d4d4d4d4d4d4d4d4d4d4d41000000000000004d4d4d4d4d4d4d4d4d4d4d444d4d4d4d4d4d4d4d0500000000000000e0e0e0e0e04d4d4d4d4d4d4d4d4d4d4d0100f7004d4d4d4d4d4d4d4d4d4a4d4d4d4d4d4d4d4dcd4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d0d4d1100000075000000004d4d4a4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4dfeffffffffffffff4d4d4d4d5b4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d0000f948b68d36bfd3b4533de6f7f502621170ac00000008e0ad06294d4d4d4d0100f7004d4db74d4d4d4d4d4d4a4d4d4d4d4d4d4d4dcd4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d0d4d11000000000000004d4d4a4d4d4d4d4d4d4d4d4d4d4d0d4d4d4d4d4d4d090909090909090909ae09090909090909090909094d4d4dffffffffffffff054d4d4d090909090109090909ae0909090909090909099e094d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d0d4d1100000075000000004d4d4a4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4dfeffffffffffffff4d4d4d4d5b4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d0000f948b68d36bfd3b4533de6f7f502621170ac00000008e0ad06294d4d4d4d0100f7004d4db74d4d4d4d4d4d4a4d4d4d4d4d4d4d4dcd4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d0d4d110000000000004d4d63ffffff69ffffffffffffffffffffff63636363636363636363",
+    );
+    vgps::fuzzing::matcher(&data);
+    const { assert!(vgps::fuzzing::MATCHER_MAX_FUZZ_CELLS < vgps::matcher::MAX_CELLS as f64) };
+}
