@@ -1,6 +1,19 @@
 //! Inputs that made a fuzz target fail (see `docs/fuzzing.md`), replayed through the same
 //! code path (`vgps::fuzzing::<target>`) and checked directly on the library function.
 
+/// Three detections along the rig's axes, from the rig's origin.
+fn axis_detections() -> Vec<vgps::matcher::Detection> {
+    use nalgebra::Vector3;
+    [Vector3::x(), Vector3::y(), Vector3::z()]
+        .iter()
+        .map(|d| {
+            vgps::matcher::Detection::new(
+                vgps::geometry::Ray::try_new(Vector3::zeros(), *d).unwrap(),
+            )
+        })
+        .collect()
+}
+
 fn hex(s: &str) -> Vec<u8> {
     (0..s.len())
         .step_by(2)
@@ -117,29 +130,15 @@ fn matcher_with_no_landmarks_within_reach_returns_at_once() {
     );
     vgps::fuzzing::matcher(&data);
     use nalgebra::Vector3;
-    use vgps::geometry::Ray;
-    use vgps::matcher::{DbLandmark, Detection, LandmarkDb, MatchOptions, MatchStatus, SearchArea};
-    let db = LandmarkDb::new(
-        [
-            Vector3::new(0.0, 0.0, 6.0),
-            Vector3::new(30.0, 0.0, 6.0),
-            Vector3::new(0.0, 30.0, 6.0),
-        ]
-        .iter()
-        .enumerate()
-        .map(|(k, p)| DbLandmark {
-            id: k.to_string(),
-            position_in_world: *p,
-            class: None,
-            sigma_m: 0.0,
-        })
-        .collect(),
-    )
+    use vgps::matcher::{MatchOptions, MatchStatus, SearchArea};
+    use vgps::synthetic::matcher::landmark_db;
+    let db = landmark_db(&[
+        Vector3::new(0.0, 0.0, 6.0),
+        Vector3::new(30.0, 0.0, 6.0),
+        Vector3::new(0.0, 30.0, 6.0),
+    ])
     .unwrap();
-    let detections: Vec<Detection> = [Vector3::x(), Vector3::y(), Vector3::z()]
-        .iter()
-        .map(|d| Detection::new(Ray::try_new(Vector3::zeros(), *d).unwrap()))
-        .collect();
+    let detections = axis_detections();
     // A large area 20 km away: no landmark within its reach.
     let area = SearchArea::try_new(
         Vector3::new(20_000.0, 0.0, 0.0),
@@ -166,23 +165,13 @@ fn matcher_area_of_a_million_cells_is_refused() {
     );
     vgps::fuzzing::matcher(&data);
     use nalgebra::Vector3;
-    use vgps::geometry::Ray;
-    use vgps::matcher::{DbLandmark, Detection, LandmarkDb, MatchError, MatchOptions, SearchArea};
-    let db = LandmarkDb::new(
-        (0..7)
-            .map(|k| DbLandmark {
-                id: k.to_string(),
-                position_in_world: Vector3::new(10.0 * k as f64, 5.0 * (k % 3) as f64, 6.0),
-                class: None,
-                sigma_m: 0.0,
-            })
-            .collect(),
-    )
-    .unwrap();
-    let detections: Vec<Detection> = [Vector3::x(), Vector3::y(), Vector3::z()]
-        .iter()
-        .map(|d| Detection::new(Ray::try_new(Vector3::zeros(), *d).unwrap()))
+    use vgps::matcher::{MatchError, MatchOptions, SearchArea};
+    use vgps::synthetic::matcher::landmark_db;
+    let points: Vec<Vector3<f64>> = (0..7)
+        .map(|k| Vector3::new(10.0 * k as f64, 5.0 * (k % 3) as f64, 6.0))
         .collect();
+    let db = landmark_db(&points).unwrap();
+    let detections = axis_detections();
     let area = SearchArea::around(&Vector3::zeros(), 50.0, 50.0).unwrap();
     let options = MatchOptions {
         cell_size_m: 1.0,

@@ -12,19 +12,7 @@ use vgps::synthetic::matcher::{CityConfig, CityWorld, FrameConfig};
 use vgps::synthetic::{random_unit_vector, rng};
 
 fn db_of(points: &[Vector3<f64>]) -> LandmarkDb {
-    LandmarkDb::new(
-        points
-            .iter()
-            .enumerate()
-            .map(|(k, p)| DbLandmark {
-                id: format!("L{k}"),
-                position_in_world: *p,
-                class: None,
-                sigma_m: 0.0,
-            })
-            .collect(),
-    )
-    .unwrap()
+    vgps::synthetic::matcher::landmark_db(points).unwrap()
 }
 
 fn detections_of(pose: &Pose, points: &[Vector3<f64>]) -> Vec<Detection> {

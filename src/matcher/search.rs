@@ -32,7 +32,6 @@ struct Hypothesis {
     last_triple: usize,
 }
 
-/// A refined hypothesis: pose, covariance, RMS residual (rad), inliers, assignment.
 /// The message of [`MatchStatus::NoLandmarksInRange`].
 const NO_LANDMARKS_IN_RANGE: &str =
     "fewer than 3 landmarks within the visibility range of the search area";
@@ -911,8 +910,9 @@ pub(super) fn run(
         if core_size == order.len() || round + 1 >= options.max_rounds as u64 {
             break;
         }
-        if conclude(&mut search, cell_data.len()).status == MatchStatus::Ok {
-            break;
+        let so_far = conclude(&mut search, cell_data.len());
+        if so_far.status == MatchStatus::Ok {
+            return Ok(so_far);
         }
         previous = core_size;
         core_size = core_size.saturating_mul(CORE_GROWTH).min(order.len());
@@ -924,8 +924,9 @@ pub(super) fn run(
 /// The result from the hypotheses kept so far. The strongest are refined: a P3P pose from
 /// three noisy bearings (nearly collinear lamps along a street) may explain fewer
 /// detections than a wrong pose before refinement and all of them after. The refined pose
-/// of least truncated cost is the fix; the runner-up is the distinct pose of least cost (a
-/// hypothesis that does not refine is scored as it is, at the tight threshold).
+/// with the most inliers (ties: least truncated cost) is the fix; the runner-up is the
+/// distinct pose with the most inliers (a hypothesis that does not refine is scored as it
+/// is, at the tight threshold).
 fn conclude(search: &mut Search, cells: usize) -> MatchResult {
     let n = search.detections.len();
     let options = search.options;

@@ -104,6 +104,26 @@ impl Default for FrameConfig {
     }
 }
 
+/// A matcher database of points: ids `L<k>` (`k` the index in `points`), unlabelled,
+/// survey σ 0.
+///
+/// # Errors
+/// Those of [`LandmarkDb::new`] (a non-finite point).
+pub fn landmark_db(points: &[Vector3<f64>]) -> Result<LandmarkDb, MatchError> {
+    LandmarkDb::new(
+        points
+            .iter()
+            .enumerate()
+            .map(|(k, p)| DbLandmark {
+                id: format!("L{k}"),
+                position_in_world: *p,
+                class: None,
+                sigma_m: 0.0,
+            })
+            .collect(),
+    )
+}
+
 /// A synthetic city.
 #[derive(Clone, Debug)]
 pub struct CityWorld {
@@ -131,24 +151,12 @@ pub struct SyntheticFrame {
 }
 
 impl CityWorld {
-    /// The matcher's database of the surveyed landmarks: ids `L<k>` (`k` the index in
-    /// [`CityWorld::landmarks`]), unlabelled, survey σ 0.
+    /// The matcher's database of the surveyed landmarks ([`landmark_db`]).
     ///
     /// # Errors
     /// Those of [`LandmarkDb::new`] (not for a generated city: its positions are finite).
     pub fn landmark_db(&self) -> Result<LandmarkDb, MatchError> {
-        LandmarkDb::new(
-            self.landmarks
-                .iter()
-                .enumerate()
-                .map(|(k, p)| DbLandmark {
-                    id: format!("L{k}"),
-                    position_in_world: *p,
-                    class: None,
-                    sigma_m: 0.0,
-                })
-                .collect(),
-        )
+        landmark_db(&self.landmarks)
     }
 
     /// Generates the city. Streets run along `x = i·block_m` and `y = j·block_m`; each block's
