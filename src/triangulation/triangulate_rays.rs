@@ -198,10 +198,8 @@ pub fn triangulate_rays(obs: &[RayObservation]) -> Result<TriangulatedPoint, Tri
 #[inline(always)]
 fn ray_is_valid(ray: &Ray) -> bool {
     let uu = ray.direction.norm_squared();
-    // False for NaN; a finite sum of the coordinates means every coordinate is finite
-    // unless two infinities cancel to NaN, which also fails.
-    (uu - 1.0).abs() <= UNIT_DIRECTION_TOLERANCE
-        && (ray.origin.x + ray.origin.y + ray.origin.z).is_finite()
+    // False for NaN.
+    ((uu - 1.0).abs() <= UNIT_DIRECTION_TOLERANCE) & is_finite(&ray.origin)
 }
 
 /// Scale (2⁻⁶⁴) of the running sum of `σ_pos² + σ_ang²` that validates the noise levels in
