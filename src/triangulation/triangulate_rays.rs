@@ -333,10 +333,12 @@ fn check_parallax_sigma(
     sigma_rad: f64,
     point: TriangulatedPoint,
 ) -> Result<TriangulatedPoint, TriangulationError> {
-    let threshold = MIN_PARALLAX_SIGMAS * sigma_rad;
-    if !(sigma_rad > 0.0) {
+    // (A NaN σ, impossible after validation, fails every comparison below: accepted, as
+    // before.)
+    if sigma_rad <= 0.0 {
         return Ok(point);
     }
+    let threshold = MIN_PARALLAX_SIGMAS * sigma_rad;
     let (s, c) = point.max_parallax_sin_cos;
     let clearly_wide = if c <= 0.0 {
         threshold <= std::f64::consts::FRAC_PI_2
