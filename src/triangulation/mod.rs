@@ -168,6 +168,42 @@ impl Sym3 {
         }
     }
 
+    /// `w·I`.
+    #[inline(always)]
+    pub fn diagonal(w: f64) -> Self {
+        Self {
+            xx: w,
+            yy: w,
+            zz: w,
+            ..Self::default()
+        }
+    }
+
+    /// `self += w·uuᵀ`.
+    #[inline(always)]
+    pub fn add_outer(&mut self, w: f64, u: &nalgebra::Vector3<f64>) {
+        let (wx, wy, wz) = (w * u.x, w * u.y, w * u.z);
+        self.xx += wx * u.x;
+        self.xy += wx * u.y;
+        self.xz += wx * u.z;
+        self.yy += wy * u.y;
+        self.yz += wy * u.z;
+        self.zz += wz * u.z;
+    }
+
+    /// `self − o`.
+    #[inline(always)]
+    pub fn minus(&self, o: &Self) -> Self {
+        Self {
+            xx: self.xx - o.xx,
+            xy: self.xy - o.xy,
+            xz: self.xz - o.xz,
+            yy: self.yy - o.yy,
+            yz: self.yz - o.yz,
+            zz: self.zz - o.zz,
+        }
+    }
+
     #[inline(always)]
     pub fn add_assign(&mut self, o: &Self) {
         self.xx += o.xx;
@@ -243,6 +279,7 @@ impl Sym3 {
         }
     }
 
+    #[inline(always)]
     pub fn scale(&self, k: f64) -> Self {
         Self {
             xx: k * self.xx,
@@ -274,6 +311,7 @@ impl Sym3 {
         }
     }
 
+    #[inline(always)]
     pub fn is_finite(&self) -> bool {
         (self.xx + self.xy + self.xz + self.yy + self.yz + self.zz).is_finite()
     }

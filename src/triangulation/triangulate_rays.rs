@@ -130,16 +130,110 @@ fn sin_cos_between(a: &Vector3<f64>, b: &Vector3<f64>) -> SinCos {
 pub fn triangulate_rays(obs: &[RayObservation]) -> Result<TriangulatedPoint, TriangulationError> {
     let first = validate_count(obs)?;
     let reference = first.ray.origin;
-    // Pass 1: A = Σ Pᵢ, b = Σ Pᵢ yᵢ with yᵢ = xᵢ − x₀.
-    let (a, b, parallax) = accumulate_normal(obs, &reference)?;
-    let (a_inv, q) = solve(&a, &b)?;
-    // Pass 2: ranges at the estimate, in-front check, noise sandwich.
-    let mut m = Sym3::default();
-    for (index, o) in obs.iter().enumerate() {
-        let s = residual_variance(index, o, &reference, &q)?;
-        m.add_assign(&Sym3::projector(&o.ray.direction, s));
+    let u0 = first.ray.direction;
+    // Pass 1: A = Σ Pᵢ = nI − Σ uᵢuᵢᵀ and b = Σ Pᵢyᵢ = Σ yᵢ − Σ uᵢ(uᵢ·yᵢ) with yᵢ = xᵢ − x₀,
+    // and the ray farthest from the first. Validity is accumulated as a flag (no branch per
+    // ray); the first offender is found on the cold path.
+    let mut uu = Sym3::default();
+    let mut b = Vector3::zeros();
+    let mut far_cos = 1.0;
+    let mut far = u0;
+    let mut rays_ok = true;
+    for o in obs {
+        let u = o.ray.direction;
+        rays_ok &= ray_is_valid(&o.ray);
+        let cos = u.dot(&u0);
+        if cos < far_cos {
+            far_cos = cos;
+            far = u;
+        }
+        let y = o.ray.origin - reference;
+        uu.add_outer(1.0, &u);
+        b += y - u * u.dot(&y);
     }
-    check_parallax(obs, finish(reference, q, &a_inv, &m, obs.len(), parallax)?)
+    if !rays_ok {
+        return Err(first_invalid_ray(obs));
+    }
+    let n = obs.len() as f64;
+    let a = Sym3::diagonal(n).minus(&uu);
+    let (a_inv, q) = solve(&a, &b)?;
+    // Pass 2: ranges at the estimate, in-front check, middle term of the sandwich
+    // M = Σ sᵢPᵢ = (Σ sᵢ) I − Σ sᵢuᵢuᵢᵀ, the largest σ_ang, and what validates the noise
+    // levels (the smallest σ and a scaled sum of σ², tested after the loop).
+    let mut m_uu = Sym3::default();
+    let mut s_sum = 0.0;
+    let mut in_front = true;
+    let (mut sp_min, mut sa_min, mut sa_max): (f64, f64, f64) = (0.0, 0.0, 0.0);
+    let mut noise_sum = 0.0;
+    for o in obs {
+        let u = o.ray.direction;
+        let r = q - (o.ray.origin - reference);
+        let (sp, sa) = (o.sigma_pos_m, o.sigma_ang_rad);
+        sp_min = if sp < sp_min { sp } else { sp_min };
+        sa_min = if sa < sa_min { sa } else { sa_min };
+        sa_max = if sa > sa_max { sa } else { sa_max };
+        let (sp2, sa2) = (sp * sp, sa * sa);
+        noise_sum += (sp2 + sa2) * NOISE_SUM_SCALE;
+        let s = sp2 + sa2 * r.norm_squared();
+        // False for NaN.
+        in_front &= r.dot(&u) > 0.0;
+        s_sum += s;
+        m_uu.add_outer(s, &u);
+    }
+    // Every σ ≥ 0 and every σ_pos² + σ_ang² finite ([`check_noise`]): a NaN σ is missed by
+    // the minima but makes the sum NaN; the scaled sum cannot overflow on its own.
+    let noise_ok = sp_min >= 0.0 && sa_min >= 0.0 && noise_sum < f64::INFINITY;
+    if !(noise_ok && in_front) {
+        return Err(first_noise_or_behind(obs, &reference, &q));
+    }
+    let m = Sym3::diagonal(s_sum).minus(&m_uu);
+    let parallax = sin_cos_between(&u0, &far);
+    check_parallax_sigma(
+        sa_max,
+        finish(reference, q, &a_inv, &m, obs.len(), parallax)?,
+    )
+}
+
+/// True for a ray with a finite origin and a unit direction (see [`check_ray`]).
+#[inline(always)]
+fn ray_is_valid(ray: &Ray) -> bool {
+    let uu = ray.direction.norm_squared();
+    // False for NaN.
+    ((uu - 1.0).abs() <= UNIT_DIRECTION_TOLERANCE) & is_finite(&ray.origin)
+}
+
+/// Scale (2⁻⁶⁴) of the running sum of `σ_pos² + σ_ang²` that validates the noise levels in
+/// [`triangulate_rays`]: each term is finite exactly when the unscaled one is, and fewer than
+/// 2⁶⁴ finite terms cannot overflow the sum.
+const NOISE_SUM_SCALE: f64 = 1.0 / 18_446_744_073_709_551_616.0;
+
+/// The error for the first invalid ray (the cold path of [`triangulate_rays`]).
+#[cold]
+#[inline(never)]
+fn first_invalid_ray(obs: &[RayObservation]) -> TriangulationError {
+    for (index, o) in obs.iter().enumerate() {
+        if let Err(e) = check_ray(index, &o.ray) {
+            return e;
+        }
+    }
+    TriangulationError::NonFinite
+}
+
+/// The error for the first observation, in order, with invalid noise or with the point at
+/// `q` (relative to `reference`) not in front of it (the cold path of [`triangulate_rays`]).
+#[cold]
+#[inline(never)]
+fn first_noise_or_behind(
+    obs: &[RayObservation],
+    reference: &Vector3<f64>,
+    q: &Vector3<f64>,
+) -> TriangulationError {
+    for (index, o) in obs.iter().enumerate() {
+        if let Err(e) = residual_variance(index, o, reference, q) {
+            return e;
+        }
+    }
+    TriangulationError::NonFinite
 }
 
 /// The inverse-variance weighted projector sum: one re-weighting step of
@@ -217,13 +311,45 @@ pub fn triangulate_rays_weighted(
 
 /// Refuses a point whose parallax is below [`MIN_PARALLAX_SIGMAS`] times the largest
 /// angular σ of the observations.
+#[inline(always)]
 fn check_parallax(
     obs: &[RayObservation],
     point: TriangulatedPoint,
 ) -> Result<TriangulatedPoint, TriangulationError> {
     let sigma_rad = obs.iter().map(|o| o.sigma_ang_rad).fold(0.0, f64::max);
+    check_parallax_sigma(sigma_rad, point)
+}
+
+/// Relative margin of the `atan2`-free parallax test over rounding.
+const PARALLAX_TEST_MARGIN: f64 = 1e-12;
+
+/// [`check_parallax`] with the largest angular σ given. The parallax θ = atan2(s, c) (from
+/// the sine and cosine of [`TriangulatedPoint::max_parallax_sin_cos`]) is at least
+/// `s/√(s² + c²)` (θ ≥ sin θ) and at least π/2 when `c ≤ 0`: either bound clearing the
+/// threshold accepts the point without the `atan2`, which is only evaluated near the
+/// threshold (where its exact value decides) and for the error.
+#[inline(always)]
+fn check_parallax_sigma(
+    sigma_rad: f64,
+    point: TriangulatedPoint,
+) -> Result<TriangulatedPoint, TriangulationError> {
+    // (A NaN σ, impossible after validation, fails every comparison below: accepted, as
+    // before.)
+    if sigma_rad <= 0.0 {
+        return Ok(point);
+    }
+    let threshold = MIN_PARALLAX_SIGMAS * sigma_rad;
+    let (s, c) = point.max_parallax_sin_cos;
+    let clearly_wide = if c <= 0.0 {
+        threshold <= std::f64::consts::FRAC_PI_2
+    } else {
+        s * s >= threshold * threshold * (s * s + c * c) * (1.0 + PARALLAX_TEST_MARGIN)
+    };
+    if clearly_wide {
+        return Ok(point);
+    }
     let parallax_rad = point.max_parallax_rad();
-    if sigma_rad > 0.0 && parallax_rad < MIN_PARALLAX_SIGMAS * sigma_rad {
+    if parallax_rad < threshold {
         return Err(TriangulationError::WeakParallax {
             parallax_rad,
             sigma_rad,
