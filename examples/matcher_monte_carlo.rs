@@ -4,11 +4,11 @@
 //! Run: `cargo run --release --example matcher_monte_carlo -- [prior|cold] [FRAMES] [SEED]`
 //!
 //! Environment: `UP_TOL_DEG=4` (known vertical to 4°), `CELL_M`, `MIN_EXT`, `TRUE_DET`,
-//! `FALSE_DET`, `SPARSE=1` (the 1,060-landmark city with a prior), `VERBOSE=1`.
+//! `FALSE_DET`, `MARGIN` (ambiguity margin), `SPARSE=1` (the 1,060-landmark city with a prior), `VERBOSE=1`.
 use std::time::Instant;
 use vgps::geometry::Ray;
-use vgps::matcher::{Detection, MatchOptions, MatchStatus, SearchArea, match_detections};
-use vgps::synthetic::matcher::{CityConfig, CityWorld, FrameConfig, RIG_HEIGHT_M};
+use vgps::matcher::{Detection, MatchOptions, MatchStatus, match_detections};
+use vgps::synthetic::matcher::{CityConfig, CityWorld, FrameConfig};
 use vgps::synthetic::rng;
 
 /// A wrong fix is a fix this far from the truth, metres.
@@ -52,6 +52,10 @@ fn main() {
             .ok()
             .and_then(|s| s.parse().ok())
             .unwrap_or(vgps::matcher::DEFAULT_MIN_EXTENSIONS),
+        ambiguity_margin: std::env::var("MARGIN")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(MatchOptions::default().ambiguity_margin),
         cell_size_m: std::env::var("CELL_M")
             .ok()
             .and_then(|s| s.parse().ok())
@@ -59,25 +63,25 @@ fn main() {
         ..MatchOptions::default()
     };
     let (mut right, mut wrong, mut ambiguous, mut none) = (0usize, 0usize, 0usize, 0usize);
+    // Right fixes whose only wrong links are coincidences: a false detection (random
+    // direction) that, under the true pose, lies within the inlier gate of a landmark, so no
+    // matcher can tell it from a detection of that landmark.
+    let mut coincident = 0usize;
+    let gate = options.inlier_threshold_sigmas * options.sigma_rad;
     let mut times = Vec::with_capacity(frames);
-    for _ in 0..frames {
-        let pose = world.random_rig_pose(&mut r);
-        let frame = world.frame(&mut r, &pose, &frame_config);
+    for frame_index in 0..frames {
+        let trial = if cold {
+            world.cold_trial(&mut r, &frame_config, &db)
+        } else {
+            world.prior_trial(&mut r, &frame_config)
+        };
+        let (pose, frame, area) = (trial.pose, trial.frame, trial.area);
         let detections: Vec<Detection> = frame
             .detections
             .iter()
             .filter_map(|b| Ray::try_new(nalgebra::Vector3::zeros(), *b))
             .map(Detection::new)
             .collect();
-        let area = if cold {
-            SearchArea::over_landmarks(&db, 0.0, RIG_HEIGHT_M - 1.0, RIG_HEIGHT_M + 1.0)
-        } else {
-            let offset = vgps::synthetic::random_unit_vector(&mut r).xy().normalize()
-                * r_range(&mut r, 30.0);
-            let centre = pose.translation.vector + nalgebra::Vector3::new(offset.x, offset.y, 0.0);
-            SearchArea::around(&centre, 30.0, 1.0)
-        }
-        .expect("valid area");
         let start = Instant::now();
         let result = match_detections(&db, &detections, &area, &options).expect("valid input");
         times.push(start.elapsed().as_secs_f64());
@@ -98,7 +102,7 @@ fn main() {
                 .as_ref()
                 .map(|p| (p.translation.vector - pose.translation.vector).norm());
             println!(
-                "{} true {} best {} runner {:?} (runner-up {:?} m from the truth) cells {} hyp {} err {:?} wrong_links {} {:.1} ms {}",
+                "frame {frame_index}: {} true {} best {} runner {:?} (runner-up {:?} m from the truth) cells {} hyp {} err {:?} wrong_links {} {:.1} ms {}",
                 result.status,
                 true_count,
                 result.best_score,
@@ -122,10 +126,27 @@ fn main() {
                     .iter()
                     .zip(&frame.truth)
                     .all(|(a, t)| a.is_none() || a == t);
+                let only_coincidences = result
+                    .assignment
+                    .iter()
+                    .zip(&frame.truth)
+                    .zip(&frame.detections)
+                    .filter(|((a, t), _)| a.is_some() && a != t)
+                    .all(|((a, t), bearing)| {
+                        let landmark = a.and_then(|i| db.get(i)).map(|l| l.position_in_world);
+                        t.is_none()
+                            && landmark.is_some_and(|p| {
+                                let predicted =
+                                    pose.inverse_transform_vector(&(p - pose.translation.vector));
+                                vgps::geometry::angle_between(&predicted, bearing) <= gate
+                            })
+                    });
                 if error > WRONG_FIX_M {
                     wrong += 1;
                 } else if assignment_right {
                     right += 1;
+                } else if only_coincidences {
+                    coincident += 1;
                 } else {
                     none += 1;
                 }
@@ -137,9 +158,10 @@ fn main() {
     times.sort_by(f64::total_cmp);
     let pct = |x: usize| 100.0 * x as f64 / frames as f64;
     println!(
-        "{mode}: {} landmarks, {frames} frames: right {right} ({:.2} %), wrong fixes {wrong} ({:.3} %), ambiguous {ambiguous} ({:.2} %), other no-fix/partly-wrong assignment {none} ({:.2} %); time per frame median {:.3} ms, p90 {:.3} ms, max {:.3} ms",
+        "{mode}: {} landmarks, {frames} frames: right {right} ({:.2} %), right pose with a coincident false detection linked {coincident} ({:.2} %), wrong fixes {wrong} ({:.3} %), ambiguous {ambiguous} ({:.2} %), other no-fix/partly-wrong assignment {none} ({:.2} %); time per frame median {:.3} ms, p90 {:.3} ms, max {:.3} ms",
         db.len(),
         pct(right),
+        pct(coincident),
         pct(wrong),
         pct(ambiguous),
         pct(none),
@@ -147,9 +169,4 @@ fn main() {
         times[frames * 9 / 10] * 1e3,
         times[frames - 1] * 1e3,
     );
-}
-
-fn r_range<R: rand::Rng + ?Sized>(r: &mut R, max: f64) -> f64 {
-    use rand::RngExt;
-    max * r.random_range(0.0..1.0f64).sqrt()
 }

@@ -6,7 +6,7 @@
 //! Cartesian frame in metres (usually ENU at an origin, see [`crate::geo::LocalFrame`]).
 
 use arrayvec::ArrayVec;
-use nalgebra::{IsometryMatrix3, Point3, Vector3};
+use nalgebra::{IsometryMatrix3, Point3, Rotation3, Vector3};
 
 /// Pose of the rig in a world frame, `world_from_rig` (rotation matrix + rig origin in world).
 pub type Pose = IsometryMatrix3<f64>;
@@ -101,6 +101,31 @@ pub fn try_unit(v: &Vector3<f64>) -> Option<Vector3<f64>> {
 #[inline]
 pub fn angle_between(a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
     a.cross(b).norm().atan2(a.dot(b))
+}
+
+/// The angle (radians, in `[0, π]`) of a rotation, accurate at every angle.
+///
+/// `atan2(|vee(M − Mᵀ)|/2, (tr M − 1)/2)`: unlike `Rotation3::angle`, an `acos` of the
+/// trace, it is never NaN when rounding puts the trace of a near-identity rotation above 3
+/// (so two equal rotations compare as equal), and it keeps full precision near zero.
+///
+/// # Example
+/// ```
+/// use nalgebra::{Rotation3, Vector3};
+/// let r = Rotation3::from_axis_angle(&Vector3::z_axis(), 0.25);
+/// assert!((vgps::geometry::rotation_angle(&r) - 0.25).abs() < 1e-15);
+/// assert_eq!(vgps::geometry::rotation_angle(&(r.inverse() * r)), 0.0);
+/// ```
+#[inline]
+pub fn rotation_angle(rotation: &Rotation3<f64>) -> f64 {
+    let m = rotation.matrix();
+    let twice_sin = Vector3::new(
+        m[(2, 1)] - m[(1, 2)],
+        m[(0, 2)] - m[(2, 0)],
+        m[(1, 0)] - m[(0, 1)],
+    )
+    .norm();
+    twice_sin.atan2(m.trace() - 1.0)
 }
 
 /// The unit bearing in the rig frame from a pose to a world point, or `None` if the point

@@ -15,9 +15,16 @@
 
 use super::{normal, perturb_bearing, random_unit_vector};
 use crate::geometry::{Pose, bearing_in_rig};
-use crate::matcher::{DbLandmark, LandmarkDb, MatchError};
+use crate::matcher::{DbLandmark, LandmarkDb, MatchError, SearchArea};
 use nalgebra::{Rotation3, Translation3, Vector3};
 use rand::{Rng, RngExt};
+
+/// Horizontal radius of the prior of [`CityWorld::prior_trial`], metres: the prior's centre
+/// is up to this far from the truth, and the search area this wide around it.
+pub const TRIAL_PRIOR_RADIUS_M: f64 = 30.0;
+
+/// Vertical half-range of the search area of [`CityWorld::prior_trial`], metres.
+pub const TRIAL_PRIOR_HALF_HEIGHT_M: f64 = 1.0;
 
 /// Class code of streetlights.
 pub const CLASS_STREETLIGHT: u32 = 0;
@@ -137,6 +144,18 @@ pub struct CityWorld {
     pub classes: Vec<u32>,
     /// Building footprints `(min_x, min_y, max_x, max_y)`, one per block.
     pub buildings: Vec<[f64; 4]>,
+}
+
+/// One trial of the matcher's Monte-Carlo experiments: the true pose, its frame and the
+/// search area handed to the matcher.
+#[derive(Clone, Debug)]
+pub struct Trial {
+    /// The true rig pose (`world_from_rig`).
+    pub pose: Pose,
+    /// The detections and their truth.
+    pub frame: SyntheticFrame,
+    /// The search area: a prior around a point near the truth, or the whole city.
+    pub area: SearchArea,
 }
 
 /// One synthetic frame.
@@ -301,6 +320,41 @@ impl CityWorld {
             .collect()
     }
 
+    /// The next trial with a prior: a random rig pose, its frame, and a search area of
+    /// ±[`TRIAL_PRIOR_RADIUS_M`] horizontally and ±[`TRIAL_PRIOR_HALF_HEIGHT_M`] vertically
+    /// around a point uniformly distributed in the disc of that radius around the truth.
+    /// The Monte-Carlo example (`examples/matcher_monte_carlo.rs`) and the tests draw their
+    /// frames from this, so a frame number and seed name the same frame in both.
+    pub fn prior_trial<R: Rng + ?Sized>(&self, rng: &mut R, config: &FrameConfig) -> Trial {
+        let pose = self.random_rig_pose(rng);
+        let frame = self.frame(rng, &pose, config);
+        let direction = random_unit_vector(rng).xy();
+        let direction = direction
+            .try_normalize(f64::EPSILON)
+            .unwrap_or_else(nalgebra::Vector2::x);
+        let offset = direction * TRIAL_PRIOR_RADIUS_M * rng.random_range(0.0..1.0f64).sqrt();
+        let centre = pose.translation.vector + Vector3::new(offset.x, offset.y, 0.0);
+        let area = SearchArea::around(&centre, TRIAL_PRIOR_RADIUS_M, TRIAL_PRIOR_HALF_HEIGHT_M)
+            .unwrap_or_else(|| unreachable_area(&centre));
+        Trial { pose, frame, area }
+    }
+
+    /// The next cold-start trial: a random rig pose, its frame, and the whole city (the
+    /// landmarks' horizontal extent, rig heights within 1 m of [`RIG_HEIGHT_M`]) as the
+    /// search area.
+    pub fn cold_trial<R: Rng + ?Sized>(
+        &self,
+        rng: &mut R,
+        config: &FrameConfig,
+        db: &LandmarkDb,
+    ) -> Trial {
+        let pose = self.random_rig_pose(rng);
+        let frame = self.frame(rng, &pose, config);
+        let area = SearchArea::over_landmarks(db, 0.0, RIG_HEIGHT_M - 1.0, RIG_HEIGHT_M + 1.0)
+            .unwrap_or_else(|| unreachable_area(&pose.translation.vector));
+        Trial { pose, frame, area }
+    }
+
     /// A frame of detections from a pose: up to `true_detections` visible landmarks (chosen
     /// at random: the others are missed), plus `false_detections` random directions, all
     /// with bearing noise, in random order.
@@ -336,6 +390,15 @@ impl CityWorld {
             classes: items.iter().map(|i| i.1).collect(),
             truth: items.iter().map(|i| i.2).collect(),
         }
+    }
+}
+
+/// A one-point area at `centre` (only for a centre that is not finite, which a generated
+/// city never gives).
+fn unreachable_area(centre: &Vector3<f64>) -> SearchArea {
+    SearchArea {
+        min_in_world: *centre,
+        max_in_world: *centre,
     }
 }
 
