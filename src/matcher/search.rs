@@ -8,11 +8,36 @@ use super::{
     MatchResult, MatchStatus, REFINE_PASSES, STOP_CONFIRMATIONS, STOP_MIN_INLIER_FRACTION,
     SearchArea, UP_CHECK_MARGIN_RAD,
 };
-use crate::geometry::{Pose, Ray, angle_between, rotation_angle, try_unit};
+use crate::geometry::{Pose, PoseSolutions, Ray, angle_between, rotation_angle, try_unit};
 use crate::solvers::p3p;
 use crate::solvers::refine_pose::{RefineOptions, refine_pose_with_sigmas};
 use nalgebra::{Matrix6, Vector3};
 use rand::{RngExt, SeedableRng};
+use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
+
+/// A multiply-rotate hasher for the small integer keys of the P3P cache (landmark index
+/// triples): the standard SipHash cost as much as a third of a P3P solve.
+#[derive(Default)]
+struct TripleHasher(u64);
+
+impl Hasher for TripleHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(u64::from(b));
+        }
+    }
+    fn write_usize(&mut self, i: usize) {
+        self.write_u64(i as u64);
+    }
+    fn write_u64(&mut self, i: u64) {
+        // The constant of FxHash (rustc's hasher).
+        self.0 = (self.0.rotate_left(5) ^ i).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+}
 
 /// A landmark as seen from a cell centre.
 struct Candidate {
@@ -733,6 +758,8 @@ pub(super) fn run(
     let order = core_detections(&search.directions, &usable, n_usable);
     let position_margin = options.visibility_range_m * 2.0 * search.noise;
     let mut survivors: Vec<[usize; 3]> = Vec::new();
+    let mut solved: HashMap<[usize; 3], PoseSolutions, BuildHasherDefault<TripleHasher>> =
+        HashMap::default();
     // P3P solves (every hypothesis scored comes from one): the budget of the frame.
     let mut solves = 0usize;
     let mut previous = 0;
@@ -763,6 +790,7 @@ pub(super) fn run(
             .saturating_mul(core_size.div_ceil(options.max_core_detections));
         triples.truncate(budget);
         for &[a, b, c] in &triples {
+            solved.clear();
             let bearings = [
                 search.directions[a],
                 search.directions[b],
@@ -856,8 +884,14 @@ pub(super) fn run(
                             }
                         }
                     }
-                    solves += 1;
-                    for pose in p3p(&bearings, &points) {
+                    // The same landmark triple passes in neighbouring cells: solve it once
+                    // per detection triple.
+                    let key = [cands[i].index, cands[j].index, cands[k].index];
+                    let solutions = solved.entry(key).or_insert_with(|| {
+                        solves += 1;
+                        p3p(&bearings, &points)
+                    });
+                    for pose in solutions.iter().copied() {
                         if (pose.translation.vector - centre).norm() > radius + position_margin {
                             continue;
                         }

@@ -332,7 +332,7 @@ impl CityWorld {
         let direction = direction
             .try_normalize(f64::EPSILON)
             .unwrap_or_else(nalgebra::Vector2::x);
-        let offset = direction * TRIAL_PRIOR_RADIUS_M * rng.random_range(0.0..1.0f64).sqrt();
+        let offset = direction * (TRIAL_PRIOR_RADIUS_M * rng.random_range(0.0..1.0f64).sqrt());
         let centre = pose.translation.vector + Vector3::new(offset.x, offset.y, 0.0);
         let area = SearchArea::around(&centre, TRIAL_PRIOR_RADIUS_M, TRIAL_PRIOR_HALF_HEIGHT_M)
             .unwrap_or_else(|| unreachable_area(&centre));
