@@ -311,17 +311,31 @@ impl LandmarkMapper {
             rays.iter().map(MapRay::effective_observation).collect();
         let spreads: Vec<PoseSpread> = rays.iter().map(PoseSpread::of).collect();
         let opts = self.options;
+        // The directions, contiguous, for the cone pre-filters below, and the frame's largest
+        // noise terms (every bound of the gates holds with them).
+        let directions: Vec<Vector3<f64>> = rays.iter().map(|r| r.ray.direction).collect();
+        let worst = FrameSpread::of(&rays, &spreads);
+        let near = MIN_RANGE_M.min(0.5 * opts.max_range_m);
         // (priority: 0 = track with an estimate, 1 = tentative; m; observation; track)
         let mut candidates: Vec<(u8, f64, usize, usize)> = Vec::new();
         for (ti, track) in self.tracks.iter().enumerate() {
             match &track.estimate {
                 Some(est) => {
-                    if (est.point - rig_origin).norm() > opts.max_range_m * 1.5 {
+                    let lever = (est.point - rig_origin).norm();
+                    if lever > opts.max_range_m * 1.5 {
                         continue;
                     }
                     let est_trace = est.covariance.trace().max(0.0);
+                    let cone = DirectionCone::around_estimate(
+                        &est.point,
+                        est_trace,
+                        &rig_origin,
+                        lever,
+                        &worst,
+                        &opts,
+                    );
                     for (k, (o, ray)) in frame.observations.iter().zip(&rays).enumerate() {
-                        if !classes_match(track.class, o.class) {
+                        if !cone.admits(&directions[k]) || !classes_match(track.class, o.class) {
                             continue;
                         }
                         if let Some(m) = gate_estimate(
@@ -344,8 +358,23 @@ impl LandmarkMapper {
                     if (last.ray.origin - rig_origin).norm() > 2.0 * opts.max_range_m {
                         continue;
                     }
+                    // The gate below starts with the last ray, and a ray that fails it is not
+                    // a candidate: only the directions that can pass it are gated.
+                    let last_spread = track.spreads.last().copied().unwrap_or(PoseSpread {
+                        pos: f64::INFINITY,
+                        rot: f64::INFINITY,
+                        offset: f64::INFINITY,
+                    });
+                    let cone = DirectionCone::around_segment(
+                        last,
+                        &last_spread,
+                        &rig_origin,
+                        near,
+                        &worst,
+                        &opts,
+                    );
                     for (k, (o, ray)) in frame.observations.iter().zip(&rays).enumerate() {
-                        if !classes_match(track.class, o.class) {
+                        if !cone.admits(&directions[k]) || !classes_match(track.class, o.class) {
                             continue;
                         }
                         // The new ray must pass near every recent ray of the track.
@@ -575,6 +604,152 @@ impl PoseSpread {
     #[inline]
     fn variance_bound(&self, lever: f64, range: f64, sigma_rad: f64) -> f64 {
         (self.pos + lever * self.rot).powi(2) + (range * sigma_rad).powi(2)
+    }
+}
+
+/// The largest noise terms of one frame's rays: with them, [`PoseSpread::variance_bound`]
+/// bounds the residual variance of every ray of the frame.
+#[derive(Clone, Copy, Debug)]
+struct FrameSpread {
+    /// Largest `√tr Σ_pp` (metres).
+    pos: f64,
+    /// Largest `√tr Σ_θθ` (radians).
+    rot: f64,
+    /// Largest camera offset from the rig origin (metres).
+    offset: f64,
+    /// Largest camera bearing σ (radians).
+    sigma_rad: f64,
+}
+
+impl FrameSpread {
+    fn of(rays: &[MapRay], spreads: &[PoseSpread]) -> Self {
+        let mut w = Self {
+            pos: 0.0,
+            rot: 0.0,
+            offset: 0.0,
+            sigma_rad: 0.0,
+        };
+        // A NaN term makes the bound NaN, and a NaN bound disables the pre-filters.
+        let max = |a: f64, b: f64| if b > a || b.is_nan() { b } else { a };
+        for (r, s) in rays.iter().zip(spreads) {
+            w.pos = max(w.pos, s.pos);
+            w.rot = max(w.rot, s.rot);
+            w.offset = max(w.offset, s.offset);
+            w.sigma_rad = max(w.sigma_rad, r.sigma_rad);
+        }
+        w
+    }
+
+    fn variance_bound(&self, lever: f64, range: f64) -> f64 {
+        (self.pos + lever * self.rot).powi(2) + (range * self.sigma_rad).powi(2)
+    }
+}
+
+/// Relative widening of the pre-filter cones, far above rounding errors: the cones only
+/// skip pairs whose gate value is well beyond the gate.
+const CONE_RELATIVE_MARGIN: f64 = 1e-3;
+/// Absolute widening of the pre-filter cones (metres of radius, and cosine).
+const CONE_ABSOLUTE_MARGIN: f64 = 1e-9;
+/// Below this cosine of its half-angle a cone is not convex enough to help: no filter.
+const CONE_MIN_COS: f64 = 0.05;
+
+/// A cone of directions from the rig origin outside which a gate cannot pass: a conservative
+/// pre-filter that skips (track, observation) pairs without changing the gates' results.
+///
+/// Both gates pass only when a point `q_x` of the new ray, in front of its camera `x`, lies
+/// within `δ = √(gate · variance bound)` of the track (its estimate, or a segment of its
+/// last ray). The point `q = t + (q_x − x)` on the parallel ray from the rig origin `t` is
+/// then within `ρ = δ + |x − t|` of it, so the ray's direction lies in the cone from `t`
+/// that contains the ball (or capsule) of radius `ρ` around the track.
+#[derive(Clone, Copy, Debug)]
+struct DirectionCone {
+    /// Unit axis, or zero for the cone of every direction.
+    axis: Vector3<f64>,
+    /// Cosine of the half-angle (−∞ for every direction).
+    min_cos: f64,
+}
+
+impl DirectionCone {
+    const ALL: Self = Self {
+        axis: Vector3::new(0.0, 0.0, 0.0),
+        min_cos: f64::NEG_INFINITY,
+    };
+
+    /// True when the unit direction `u` may pass the gate.
+    #[inline]
+    fn admits(&self, u: &Vector3<f64>) -> bool {
+        u.dot(&self.axis) >= self.min_cos
+    }
+
+    /// The cone of [`gate_estimate`] for an estimate at `point`, `lever` from the rig origin.
+    /// The ray's range to the point is at most `lever` + camera offset (and `max_range_m`).
+    fn around_estimate(
+        point: &Vector3<f64>,
+        est_trace: f64,
+        rig_origin: &Vector3<f64>,
+        lever: f64,
+        w: &FrameSpread,
+        opts: &MapperOptions,
+    ) -> Self {
+        let range = (lever + w.offset).min(opts.max_range_m);
+        let var = est_trace + w.variance_bound(lever, range);
+        let rho = (opts.gate_chi2_2dof * var).sqrt() + w.offset;
+        let rho = rho * (1.0 + CONE_RELATIVE_MARGIN) + CONE_ABSOLUTE_MARGIN;
+        let k = rho / lever;
+        if !(k < 1.0) {
+            return Self::ALL;
+        }
+        let min_cos = (1.0 - k * k).sqrt() - CONE_ABSOLUTE_MARGIN;
+        if !(min_cos > CONE_MIN_COS) {
+            return Self::ALL;
+        }
+        Self {
+            axis: (point - rig_origin) / lever,
+            min_cos,
+        }
+    }
+
+    /// The cone of [`gate_two_rays`] against the track ray `a` (its segment from `near` to
+    /// `max_range_m` in front of its camera), for the rays of a frame with rig origin
+    /// `rig_origin`. Both closest points are at most `max_range_m` from their cameras.
+    fn around_segment(
+        a: &MapRay,
+        a_spread: &PoseSpread,
+        rig_origin: &Vector3<f64>,
+        near: f64,
+        w: &FrameSpread,
+        opts: &MapperOptions,
+    ) -> Self {
+        let l = opts.max_range_m;
+        let var = a_spread.variance_bound(l + a_spread.offset, l, a.sigma_rad)
+            + w.variance_bound(l + w.offset, l);
+        let rho = (opts.gate_chi2_1dof * var).sqrt() + w.offset;
+        let rho = rho * (1.0 + CONE_RELATIVE_MARGIN) + CONE_ABSOLUTE_MARGIN;
+        let c1 = a.ray.at(near) - rig_origin;
+        let c2 = a.ray.at(l) - rig_origin;
+        let (d1, d2) = (c1.norm(), c2.norm());
+        let (k1, k2) = (rho / d1, rho / d2);
+        if !(k1 < 1.0 && k2 < 1.0) {
+            return Self::ALL;
+        }
+        let (c1, c2) = (c1 / d1, c2 / d2);
+        let sum = c1 + c2;
+        let n = sum.norm();
+        if !(n > 0.5) {
+            return Self::ALL;
+        }
+        let axis = sum / n;
+        // Half the angle between the end directions, from the axis (sine from the cross
+        // product: accurate for small angles).
+        let cos_a = c1.dot(&axis);
+        let sin_a = c1.cross(&axis).norm();
+        // cos(α + asin k) for the larger k (the larger half-angle).
+        let k = k1.max(k2);
+        let min_cos = cos_a * (1.0 - k * k).sqrt() - sin_a * k - CONE_ABSOLUTE_MARGIN;
+        if !(min_cos > CONE_MIN_COS) {
+            return Self::ALL;
+        }
+        Self { axis, min_cos }
     }
 }
 
