@@ -314,8 +314,11 @@ impl LandmarkMapper {
         // The directions, contiguous, for the cone pre-filters below, and the frame's largest
         // noise terms (every bound of the gates holds with them).
         let directions: Vec<Vector3<f64>> = rays.iter().map(|r| r.ray.direction).collect();
-        let worst = FrameSpread::of(&rays, &spreads);
+        let frame_spread = FrameSpread::of(&rays, &spreads);
         let near = MIN_RANGE_M.min(0.5 * opts.max_range_m);
+        let by_azimuth = AzimuthIndex::new(&directions);
+        // The observations in a track's cone's azimuth window (reused buffer).
+        let mut window: Vec<usize> = Vec::with_capacity(rays.len());
         // (priority: 0 = track with an estimate, 1 = tentative; m; observation; track)
         let mut candidates: Vec<(u8, f64, usize, usize)> = Vec::new();
         for (ti, track) in self.tracks.iter().enumerate() {
@@ -331,10 +334,12 @@ impl LandmarkMapper {
                         est_trace,
                         &rig_origin,
                         lever,
-                        &worst,
+                        &frame_spread,
                         &opts,
                     );
-                    for (k, (o, ray)) in frame.observations.iter().zip(&rays).enumerate() {
+                    by_azimuth.window(&cone, &mut window);
+                    for &k in &window {
+                        let (o, ray) = (&frame.observations[k], &rays[k]);
                         if !cone.admits(&directions[k]) || !classes_match(track.class, o.class) {
                             continue;
                         }
@@ -370,10 +375,12 @@ impl LandmarkMapper {
                         &last_spread,
                         &rig_origin,
                         near,
-                        &worst,
+                        &frame_spread,
                         &opts,
                     );
-                    for (k, (o, ray)) in frame.observations.iter().zip(&rays).enumerate() {
+                    by_azimuth.window(&cone, &mut window);
+                    for &k in &window {
+                        let (o, ray) = (&frame.observations[k], &rays[k]);
                         if !cone.admits(&directions[k]) || !classes_match(track.class, o.class) {
                             continue;
                         }
@@ -405,7 +412,14 @@ impl LandmarkMapper {
                 }
             }
         }
-        candidates.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
+        // By priority and m; ties in (track, observation) order, so that the assignment does
+        // not depend on the order the windows gave the pairs in.
+        candidates.sort_unstable_by(|a, b| {
+            a.0.cmp(&b.0)
+                .then(a.1.total_cmp(&b.1))
+                .then(a.3.cmp(&b.3))
+                .then(a.2.cmp(&b.2))
+        });
         let mut obs_track: Vec<Option<usize>> = vec![None; rays.len()];
         let mut track_used = vec![false; self.tracks.len()];
         for &(_, _, k, ti) in &candidates {
@@ -667,12 +681,15 @@ struct DirectionCone {
     axis: Vector3<f64>,
     /// Cosine of the half-angle (−∞ for every direction).
     min_cos: f64,
+    /// Sine of the half-angle (widened like `min_cos`; ∞ for every direction).
+    sin_half: f64,
 }
 
 impl DirectionCone {
     const ALL: Self = Self {
         axis: Vector3::new(0.0, 0.0, 0.0),
         min_cos: f64::NEG_INFINITY,
+        sin_half: f64::INFINITY,
     };
 
     /// True when the unit direction `u` may pass the gate.
@@ -706,6 +723,7 @@ impl DirectionCone {
         Self {
             axis: (point - rig_origin) / lever,
             min_cos,
+            sin_half: k + CONE_ABSOLUTE_MARGIN,
         }
     }
 
@@ -745,11 +763,100 @@ impl DirectionCone {
         let sin_a = c1.cross(&axis).norm();
         // cos(α + asin k) for the larger k (the larger half-angle).
         let k = k1.max(k2);
-        let min_cos = cos_a * (1.0 - k * k).sqrt() - sin_a * k - CONE_ABSOLUTE_MARGIN;
+        let cos_k = (1.0 - k * k).sqrt();
+        let min_cos = cos_a * cos_k - sin_a * k - CONE_ABSOLUTE_MARGIN;
         if !(min_cos > CONE_MIN_COS) {
             return Self::ALL;
         }
-        Self { axis, min_cos }
+        Self {
+            axis,
+            min_cos,
+            sin_half: sin_a * cos_k + cos_a * k + CONE_ABSOLUTE_MARGIN,
+        }
+    }
+}
+
+/// A monotonic stand-in for the azimuth `atan2(y, x)` of a horizontal direction, in
+/// `[0, 4)` (0 along +x, 1 along +y, 2 along −x, 3 along −y); NaN for `(0, 0)`.
+#[inline]
+fn pseudo_azimuth(x: f64, y: f64) -> f64 {
+    let p = x / (x.abs() + y.abs());
+    if y < 0.0 { 3.0 + p } else { 1.0 - p }
+}
+
+/// Largest `sin Δ` of an azimuth window (`Δ` its half-width); wider cones scan everything.
+const WINDOW_MAX_SIN: f64 = 0.95;
+
+/// A frame's observation directions sorted by azimuth, so that a track only visits the
+/// observations in the azimuth window of its [`DirectionCone`].
+#[derive(Debug)]
+struct AzimuthIndex {
+    /// `(pseudo_azimuth, observation)`, by increasing key.
+    sorted: Vec<(f64, usize)>,
+    /// Observations without an azimuth (straight up or down): always visited.
+    polar: Vec<usize>,
+    /// Number of observations.
+    len: usize,
+}
+
+impl AzimuthIndex {
+    fn new(directions: &[Vector3<f64>]) -> Self {
+        let mut sorted = Vec::with_capacity(directions.len());
+        let mut polar = Vec::new();
+        for (k, u) in directions.iter().enumerate() {
+            let key = pseudo_azimuth(u.x, u.y);
+            if key.is_finite() {
+                sorted.push((key, k));
+            } else {
+                polar.push(k);
+            }
+        }
+        sorted.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        Self {
+            sorted,
+            polar,
+            len: directions.len(),
+        }
+    }
+
+    /// Fills `out` with a superset of the observations whose direction is in `cone`: a cone
+    /// of half-angle `β` around an axis at elevation `θ` spans the azimuths within
+    /// `Δ = asin(sin β / cos θ)` of the axis's (when `β < 90° − |θ|`).
+    fn window(&self, cone: &DirectionCone, out: &mut Vec<usize>) {
+        out.clear();
+        let a = cone.axis;
+        let h = (a.x * a.x + a.y * a.y).sqrt();
+        let sin_d = cone.sin_half / h + CONE_ABSOLUTE_MARGIN;
+        if !(sin_d < WINDOW_MAX_SIN) {
+            out.extend(0..self.len);
+            return;
+        }
+        let cos_d = (1.0 - sin_d * sin_d).sqrt();
+        let (hx, hy) = (a.x / h, a.y / h);
+        let mut lo = pseudo_azimuth(hx * cos_d + hy * sin_d, hy * cos_d - hx * sin_d)
+            - CONE_ABSOLUTE_MARGIN;
+        let mut hi = pseudo_azimuth(hx * cos_d - hy * sin_d, hy * cos_d + hx * sin_d)
+            + CONE_ABSOLUTE_MARGIN;
+        if !(lo.is_finite() && hi.is_finite()) {
+            out.extend(0..self.len);
+            return;
+        }
+        if lo < 0.0 {
+            lo += 4.0;
+        }
+        if hi >= 4.0 {
+            hi -= 4.0;
+        }
+        let first = |key: f64| self.sorted.partition_point(|e| e.0 < key);
+        let past = |key: f64| self.sorted.partition_point(|e| e.0 <= key);
+        if lo <= hi {
+            out.extend(self.sorted[first(lo)..past(hi)].iter().map(|e| e.1));
+        } else {
+            // The window wraps through azimuth 0.
+            out.extend(self.sorted[first(lo)..].iter().map(|e| e.1));
+            out.extend(self.sorted[..past(hi)].iter().map(|e| e.1));
+        }
+        out.extend_from_slice(&self.polar);
     }
 }
 
