@@ -11,6 +11,7 @@ use crate::triangulation::{
     RayObservation, RaySum, TriangulatedPoint, TriangulationError, intersect_two_rays,
 };
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
+use std::ops::Range;
 
 /// Options of the [`LandmarkMapper`]; `Default` gives the documented constants.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -317,8 +318,6 @@ impl LandmarkMapper {
         let frame_spread = FrameSpread::of(&rays, &spreads);
         let near = MIN_RANGE_M.min(0.5 * opts.max_range_m);
         let by_azimuth = AzimuthIndex::new(&directions);
-        // The observations in a track's cone's azimuth window (reused buffer).
-        let mut window: Vec<usize> = Vec::with_capacity(rays.len());
         // (priority: 0 = track with an estimate, 1 = tentative; m; observation; track)
         let mut candidates: Vec<(u8, f64, usize, usize)> = Vec::new();
         for (ti, track) in self.tracks.iter().enumerate() {
@@ -337,22 +336,24 @@ impl LandmarkMapper {
                         &frame_spread,
                         &opts,
                     );
-                    by_azimuth.window(&cone, &mut window);
-                    for &k in &window {
-                        let (o, ray) = (&frame.observations[k], &rays[k]);
-                        if !cone.admits(&directions[k]) || !classes_match(track.class, o.class) {
-                            continue;
-                        }
-                        if let Some(m) = gate_estimate(
-                            est,
-                            est_trace,
-                            ray,
-                            &spreads[k],
-                            opts.max_range_m,
-                            opts.gate_chi2_2dof,
-                        ) && m <= opts.gate_chi2_2dof
-                        {
-                            candidates.push((0, m, k, ti));
+                    for range in by_azimuth.window(&cone) {
+                        for &k in &by_azimuth.order[range] {
+                            let (o, ray) = (&frame.observations[k], &rays[k]);
+                            if !cone.admits(&directions[k]) || !classes_match(track.class, o.class)
+                            {
+                                continue;
+                            }
+                            if let Some(m) = gate_estimate(
+                                est,
+                                est_trace,
+                                ray,
+                                &spreads[k],
+                                opts.max_range_m,
+                                opts.gate_chi2_2dof,
+                            ) && m <= opts.gate_chi2_2dof
+                            {
+                                candidates.push((0, m, k, ti));
+                            }
                         }
                     }
                 }
@@ -378,35 +379,37 @@ impl LandmarkMapper {
                         &frame_spread,
                         &opts,
                     );
-                    by_azimuth.window(&cone, &mut window);
-                    for &k in &window {
-                        let (o, ray) = (&frame.observations[k], &rays[k]);
-                        if !cone.admits(&directions[k]) || !classes_match(track.class, o.class) {
-                            continue;
-                        }
-                        // The new ray must pass near every recent ray of the track.
-                        let start = track.rays.len().saturating_sub(MAX_PAIRWISE_RAYS);
-                        // Most recent first; stop at the first ray that fails the gate.
-                        let mut worst = Some(0.0f64);
-                        for (r, rs) in track.rays[start..]
-                            .iter()
-                            .zip(&track.spreads[start..])
-                            .rev()
-                        {
-                            match gate_two_rays(r, rs, ray, &spreads[k], &opts) {
-                                Some(m) if m <= opts.gate_chi2_1dof => {
-                                    worst = worst.map(|w| w.max(m));
-                                }
-                                _ => {
-                                    worst = None;
-                                    break;
+                    for range in by_azimuth.window(&cone) {
+                        for &k in &by_azimuth.order[range] {
+                            let (o, ray) = (&frame.observations[k], &rays[k]);
+                            if !cone.admits(&directions[k]) || !classes_match(track.class, o.class)
+                            {
+                                continue;
+                            }
+                            // The new ray must pass near every recent ray of the track.
+                            let start = track.rays.len().saturating_sub(MAX_PAIRWISE_RAYS);
+                            // Most recent first; stop at the first ray that fails the gate.
+                            let mut worst = Some(0.0f64);
+                            for (r, rs) in track.rays[start..]
+                                .iter()
+                                .zip(&track.spreads[start..])
+                                .rev()
+                            {
+                                match gate_two_rays(r, rs, ray, &spreads[k], &opts) {
+                                    Some(m) if m <= opts.gate_chi2_1dof => {
+                                        worst = worst.map(|w| w.max(m));
+                                    }
+                                    _ => {
+                                        worst = None;
+                                        break;
+                                    }
                                 }
                             }
-                        }
-                        if let Some(m) = worst
-                            && m <= opts.gate_chi2_1dof
-                        {
-                            candidates.push((1, m, k, ti));
+                            if let Some(m) = worst
+                                && m <= opts.gate_chi2_1dof
+                            {
+                                candidates.push((1, m, k, ti));
+                            }
                         }
                     }
                 }
@@ -787,59 +790,83 @@ fn pseudo_azimuth(x: f64, y: f64) -> f64 {
 /// Largest `sin Δ` of an azimuth window (`Δ` its half-width); wider cones scan everything.
 const WINDOW_MAX_SIN: f64 = 0.95;
 
-/// A frame's observation directions sorted by azimuth, so that a track only visits the
-/// observations in the azimuth window of its [`DirectionCone`].
+/// Number of azimuth buckets of an [`AzimuthIndex`] (over the 4 units of [`pseudo_azimuth`]).
+const AZIMUTH_BUCKETS: usize = 64;
+
+/// A frame's observations sorted by azimuth, so that a track only visits the observations
+/// in the azimuth window of its [`DirectionCone`].
 #[derive(Debug)]
 struct AzimuthIndex {
-    /// `(pseudo_azimuth, observation)`, by increasing key.
-    sorted: Vec<(f64, usize)>,
-    /// Observations without an azimuth (straight up or down): always visited.
-    polar: Vec<usize>,
-    /// Number of observations.
-    len: usize,
+    /// The observations by increasing [`pseudo_azimuth`], then those without an azimuth
+    /// (straight up or down), which every window includes.
+    order: Vec<usize>,
+    /// Number of observations with an azimuth (the sorted part of `order`).
+    n_sorted: usize,
+    /// `bucket_start[b]`: the first position of `order` whose key is at least
+    /// `4 b / AZIMUTH_BUCKETS`.
+    bucket_start: [usize; AZIMUTH_BUCKETS + 1],
 }
 
 impl AzimuthIndex {
     fn new(directions: &[Vector3<f64>]) -> Self {
-        let mut sorted = Vec::with_capacity(directions.len());
+        let mut keyed = Vec::with_capacity(directions.len());
         let mut polar = Vec::new();
         for (k, u) in directions.iter().enumerate() {
             let key = pseudo_azimuth(u.x, u.y);
             if key.is_finite() {
-                sorted.push((key, k));
+                keyed.push((key, k));
             } else {
                 polar.push(k);
             }
         }
-        sorted.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        keyed.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let mut bucket_start = [keyed.len(); AZIMUTH_BUCKETS + 1];
+        let mut b = 0;
+        for (i, (key, _)) in keyed.iter().enumerate() {
+            let kb = Self::bucket(*key);
+            while b <= kb {
+                bucket_start[b] = i;
+                b += 1;
+            }
+        }
+        let n_sorted = keyed.len();
+        let mut order: Vec<usize> = keyed.into_iter().map(|e| e.1).collect();
+        order.extend(polar);
         Self {
-            sorted,
-            polar,
-            len: directions.len(),
+            order,
+            n_sorted,
+            bucket_start,
         }
     }
 
-    /// Fills `out` with a superset of the observations whose direction is in `cone`: a cone
-    /// of half-angle `β` around an axis at elevation `θ` spans the azimuths within
-    /// `Δ = asin(sin β / cos θ)` of the axis's (when `β < 90° − |θ|`).
-    fn window(&self, cone: &DirectionCone, out: &mut Vec<usize>) {
-        out.clear();
+    /// The bucket of a key in `[0, 4)` (clamped).
+    #[inline]
+    fn bucket(key: f64) -> usize {
+        // `as` saturates: negative keys go to bucket 0.
+        ((key * (AZIMUTH_BUCKETS as f64 / 4.0)) as usize).min(AZIMUTH_BUCKETS - 1)
+    }
+
+    /// Ranges of `order` holding a superset of the observations whose direction is in
+    /// `cone`: a cone of half-angle `β` around an axis at elevation `θ` spans the azimuths
+    /// within `Δ = asin(sin β / cos θ)` of the axis's (when `β < 90° − |θ|`); whole buckets
+    /// of that window are visited. Everything when the cone is too wide.
+    #[inline]
+    fn window(&self, cone: &DirectionCone) -> [Range<usize>; 3] {
+        let all = [0..self.order.len(), 0..0, 0..0];
         let a = cone.axis;
         let h = (a.x * a.x + a.y * a.y).sqrt();
         let sin_d = cone.sin_half / h + CONE_ABSOLUTE_MARGIN;
         if !(sin_d < WINDOW_MAX_SIN) {
-            out.extend(0..self.len);
-            return;
+            return all;
         }
         let cos_d = (1.0 - sin_d * sin_d).sqrt();
         let (hx, hy) = (a.x / h, a.y / h);
-        let mut lo = pseudo_azimuth(hx * cos_d + hy * sin_d, hy * cos_d - hx * sin_d)
-            - CONE_ABSOLUTE_MARGIN;
-        let mut hi = pseudo_azimuth(hx * cos_d - hy * sin_d, hy * cos_d + hx * sin_d)
-            + CONE_ABSOLUTE_MARGIN;
+        let mut lo =
+            pseudo_azimuth(hx * cos_d + hy * sin_d, hy * cos_d - hx * sin_d) - CONE_ABSOLUTE_MARGIN;
+        let mut hi =
+            pseudo_azimuth(hx * cos_d - hy * sin_d, hy * cos_d + hx * sin_d) + CONE_ABSOLUTE_MARGIN;
         if !(lo.is_finite() && hi.is_finite()) {
-            out.extend(0..self.len);
-            return;
+            return all;
         }
         if lo < 0.0 {
             lo += 4.0;
@@ -847,16 +874,15 @@ impl AzimuthIndex {
         if hi >= 4.0 {
             hi -= 4.0;
         }
-        let first = |key: f64| self.sorted.partition_point(|e| e.0 < key);
-        let past = |key: f64| self.sorted.partition_point(|e| e.0 <= key);
+        let first = self.bucket_start[Self::bucket(lo)];
+        let past = self.bucket_start[Self::bucket(hi) + 1];
+        let polar = self.n_sorted..self.order.len();
         if lo <= hi {
-            out.extend(self.sorted[first(lo)..past(hi)].iter().map(|e| e.1));
+            [first..past, polar, 0..0]
         } else {
             // The window wraps through azimuth 0.
-            out.extend(self.sorted[first(lo)..].iter().map(|e| e.1));
-            out.extend(self.sorted[..past(hi)].iter().map(|e| e.1));
+            [first..self.n_sorted, 0..past, polar]
         }
-        out.extend_from_slice(&self.polar);
     }
 }
 
