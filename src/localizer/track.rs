@@ -70,6 +70,75 @@ fn predicted_sigma(obs: &ObsRay, c: &Candidate, range: f64, guess: &GuessUncerta
     (obs.sigma_rad * obs.sigma_rad + lateral + guess.rotation_rad * guess.rotation_rad).sqrt()
 }
 
+/// The largest noise terms of a frame's observations, for [`gate_cone`].
+#[derive(Clone, Copy, Debug)]
+struct ObsSpread {
+    /// Largest `σ_obs²` (rad²).
+    sigma2: f64,
+    /// Largest camera offset from the rig origin (metres).
+    offset: f64,
+}
+
+impl ObsSpread {
+    fn of(observations: &[ObsRay]) -> Self {
+        // NaN terms propagate (and then disable the cone).
+        let max = |a: f64, b: f64| if b > a || b.is_nan() { b } else { a };
+        observations.iter().fold(
+            Self {
+                sigma2: 0.0,
+                offset: 0.0,
+            },
+            |w, o| Self {
+                sigma2: max(w.sigma2, o.sigma_rad * o.sigma_rad),
+                offset: max(w.offset, o.ray.origin.norm()),
+            },
+        )
+    }
+}
+
+/// Relative widening of the [`gate_cone`], far above rounding errors.
+const CONE_RELATIVE_MARGIN: f64 = 1e-3;
+/// Absolute widening of the [`gate_cone`] (metres of radius, and cosine).
+const CONE_ABSOLUTE_MARGIN: f64 = 1e-9;
+/// Observation directions may be this far from unit length (see `observation_rays`).
+const DIRECTION_NORM_TOLERANCE: f64 = 1e-5;
+/// Below this cosine of its half-angle the cone does not help: every direction passes.
+const CONE_MIN_COS: f64 = 0.05;
+
+/// A cone `(axis, min_cos)` of rig-frame directions outside which no observation can pass
+/// the gate of [`associate`] for a candidate at `in_rig`: a conservative pre-filter
+/// (`u · axis < min_cos` ⇒ the pair fails the gate), derived from the gate itself.
+///
+/// The gate passes only when the candidate is within `δ = g √(|v|²(σ_obs² + σ_rot²) + σ_lat²)`
+/// of the observation's ray in front of its camera `x` (`v` the candidate from `x`, `|v| ≤
+/// |c| + |x|`); the parallel ray from the rig origin then passes within `ρ = δ + |x|`, so its
+/// direction is within `asin(ρ / |c|)` of the candidate's.
+fn gate_cone(
+    in_rig: &Vector3<f64>,
+    lateral2: f64,
+    rot2: f64,
+    gate2: f64,
+    w: &ObsSpread,
+) -> (Vector3<f64>, f64) {
+    let every = (Vector3::zeros(), f64::NEG_INFINITY);
+    let d = in_rig.norm();
+    let range = d + w.offset;
+    let var = range * range * (w.sigma2 + rot2) + lateral2;
+    // |u × v| ≤ δ with |u| ≥ 1 − tolerance.
+    let delta = (gate2 * var).sqrt() / (1.0 - DIRECTION_NORM_TOLERANCE);
+    let rho = (delta + w.offset) * (1.0 + CONE_RELATIVE_MARGIN) + CONE_ABSOLUTE_MARGIN;
+    let k = rho / d;
+    if !(k < 1.0) {
+        return every;
+    }
+    // u · axis = |u| cos θ ≥ (1 − tolerance) cos θ.
+    let min_cos = (1.0 - k * k).sqrt() * (1.0 - DIRECTION_NORM_TOLERANCE) - CONE_ABSOLUTE_MARGIN;
+    if !(min_cos > CONE_MIN_COS) {
+        return every;
+    }
+    (in_rig / d, min_cos)
+}
+
 /// Associates observations with candidates one-to-one (smallest normalised residual first)
 /// from the pose guess; returns per observation the candidate index.
 fn associate(
@@ -88,10 +157,15 @@ fn associate(
     let gate2 = gate_sigmas * gate_sigmas;
     let rot2 = guess.rotation_rad * guess.rotation_rad;
     let pos2 = guess.position_m * guess.position_m;
+    let worst = ObsSpread::of(observations);
     for (ci, c) in candidates.iter().enumerate() {
         let in_rig = rig_from_world * nalgebra::Point3::from(c.position);
         let lateral2 = pos2 + c.sigma_m * c.sigma_m;
+        let (axis, min_cos) = gate_cone(&in_rig.coords, lateral2, rot2, gate2, &worst);
         for (oi, o) in observations.iter().enumerate() {
+            if o.ray.direction.dot(&axis) < min_cos {
+                continue;
+            }
             if let (Some(a), Some(b)) = (o.class, c.class)
                 && a != b
             {
