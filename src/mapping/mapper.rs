@@ -1010,3 +1010,221 @@ fn gate_two_rays(
     let m = gap2 / var;
     m.is_finite().then_some(m)
 }
+
+#[cfg(test)]
+mod cone_tests {
+    use super::*;
+    use crate::geometry::Ray;
+    use crate::synthetic::{random_unit_vector, rng};
+    use nalgebra::{Matrix6, SMatrix};
+    use rand::{Rng, RngExt};
+
+    /// A random pose covariance: position σ 1 cm – `max_m`, attitude σ 0.1 mrad – `max_rad`,
+    /// correlated.
+    fn pose_covariance<R: Rng + ?Sized>(r: &mut R, max_m: f64, max_rad: f64) -> Matrix6<f64> {
+        let a = SMatrix::<f64, 6, 6>::from_fn(|_, _| r.random_range(-1.0..1.0));
+        let (sp, sr) = (r.random_range(0.01..max_m), r.random_range(1e-4..max_rad));
+        let d = Matrix6::from_diagonal(&nalgebra::Vector6::new(sp, sp, sp, sr, sr, sr));
+        d * (a * a.transpose() / 6.0 + Matrix6::identity() * 0.1) * d
+    }
+
+    /// One frame: rays from cameras around `rig`, each aimed at `target` off by 0 to 4
+    /// times `width(range)` (metres), or anywhere.
+    fn frame_rays<R: Rng + ?Sized>(
+        r: &mut R,
+        rig: &Vector3<f64>,
+        target: &Vector3<f64>,
+        pose_covariance: Matrix6<f64>,
+        width: impl Fn(f64) -> f64,
+    ) -> Vec<MapRay> {
+        (0..24)
+            .map(|k| {
+                let origin = rig + random_unit_vector(r) * r.random_range(0.0..0.3);
+                let to = target - origin;
+                let direction = if k % 6 == 5 {
+                    random_unit_vector(r)
+                } else {
+                    let off = random_unit_vector(r) * (r.random_range(0.0..4.0) * width(to.norm()));
+                    (to + off).normalize()
+                };
+                MapRay {
+                    ray: Ray { origin, direction },
+                    rig_origin: *rig,
+                    pose_covariance,
+                    sigma_rad: r.random_range(1e-4..3e-3),
+                }
+            })
+            .collect()
+    }
+
+    /// The observations an [`AzimuthIndex`] window visits.
+    fn visited(index: &AzimuthIndex, cone: &DirectionCone) -> Vec<usize> {
+        index
+            .window(cone)
+            .into_iter()
+            .flat_map(|range| index.order[range].iter().copied())
+            .collect()
+    }
+
+    /// The estimate cone and its azimuth window never drop a pair that `gate_estimate`
+    /// passes, and they drop most of the pairs it fails.
+    #[test]
+    fn estimate_cone_never_rejects_a_passing_pair() {
+        let mut r = rng(0xc0e5);
+        let opts = MapperOptions::default();
+        let (mut passed, mut outside, mut dropped_outside) = (0, 0, 0);
+        for _ in 0..1500 {
+            let rig = Vector3::new(
+                r.random_range(-50.0..50.0),
+                r.random_range(-50.0..50.0),
+                r.random_range(0.0..3.0),
+            );
+            let point = rig + random_unit_vector(&mut r) * r.random_range(1.0..140.0);
+            let s = r.random_range(0.005..2.0);
+            let c = pose_covariance(&mut r, 1.0, 0.02)
+                .fixed_view::<3, 3>(0, 0)
+                .into_owned()
+                * (s * s);
+            let est = TriangulatedPoint {
+                point,
+                covariance: c,
+                n_obs: 5,
+                max_parallax_sin_cos: (0.1, 1.0),
+            };
+            let est_trace = c.trace().max(0.0);
+            let cov = pose_covariance(&mut r, 1.0, 0.02);
+            let rays = frame_rays(&mut r, &rig, &point, cov, |range| {
+                s * 4.0 + range * 0.01 + 0.5
+            });
+            let spreads: Vec<PoseSpread> = rays.iter().map(PoseSpread::of).collect();
+            let w = FrameSpread::of(&rays, &spreads);
+            let lever = (point - rig).norm();
+            let cone = DirectionCone::around_estimate(&point, est_trace, &rig, lever, &w, &opts);
+            let directions: Vec<_> = rays.iter().map(|x| x.ray.direction).collect();
+            let index = AzimuthIndex::new(&directions);
+            let seen = visited(&index, &cone);
+            for (k, ray) in rays.iter().enumerate() {
+                let kept = cone.admits(&ray.ray.direction) && seen.contains(&k);
+                let m = gate_estimate(
+                    &est,
+                    est_trace,
+                    ray,
+                    &spreads[k],
+                    opts.max_range_m,
+                    opts.gate_chi2_2dof,
+                );
+                if m.is_some_and(|m| m <= opts.gate_chi2_2dof) {
+                    passed += 1;
+                    assert!(kept, "passing pair dropped: {ray:?} {est:?}");
+                } else {
+                    outside += 1;
+                    dropped_outside += usize::from(!kept);
+                }
+            }
+        }
+        assert!(passed > 3000 && outside > 3000, "{passed} {outside}");
+        assert!(
+            dropped_outside * 2 > outside,
+            "{dropped_outside} of {outside}"
+        );
+    }
+
+    /// The segment cone and its azimuth window never drop a pair whose first gate
+    /// (`gate_two_rays` against the track's last ray) passes, and drop a good part of
+    /// the rays in random directions.
+    #[test]
+    fn segment_cone_never_rejects_a_passing_pair() {
+        let mut r = rng(0x5e9);
+        let opts = MapperOptions::default();
+        let near = MIN_RANGE_M.min(0.5 * opts.max_range_m);
+        let (mut passed, mut outside, mut dropped_outside) = (0, 0, 0);
+        for _ in 0..1500 {
+            let rig = Vector3::new(
+                r.random_range(-50.0..50.0),
+                r.random_range(-50.0..50.0),
+                r.random_range(0.0..3.0),
+            );
+            // The track's last ray, seen from up to 5 m away (or, for narrow cones, 20 – 60 m
+            // away), at a landmark 1.5 – 120 m off.
+            let gap = if r.random_range(0.0..1.0) < 0.5 {
+                r.random_range(0.0..5.0)
+            } else {
+                r.random_range(20.0..60.0)
+            };
+            let before = rig + random_unit_vector(&mut r) * gap;
+            let landmark = rig + random_unit_vector(&mut r) * r.random_range(1.5..120.0);
+            // Pose σ up to 20 cm and 2 mrad (a tracked drive).
+            let cov = pose_covariance(&mut r, 0.2, 2e-3);
+            let last = frame_rays(&mut r, &before, &landmark, cov, |_| 0.0)[0];
+            let last_spread = PoseSpread::of(&last);
+            let cov = pose_covariance(&mut r, 0.2, 2e-3);
+            let mut rays = frame_rays(&mut r, &rig, &landmark, cov, |range| 0.2 + range * 0.01);
+            // Half of the aimed rays at other points of the track's segment instead.
+            for (k, ray) in rays.iter_mut().enumerate() {
+                if k % 6 < 3 {
+                    // Along the segment, or up to 3 m past either end.
+                    let along = match k % 6 {
+                        0 => r.random_range(near..opts.max_range_m),
+                        1 => opts.max_range_m + r.random_range(0.0..3.0),
+                        _ => near - r.random_range(0.0..3.0),
+                    };
+                    let target = last.ray.at(along);
+                    let to = target - ray.ray.origin;
+                    let off = random_unit_vector(&mut r)
+                        * (r.random_range(0.0..4.0) * (0.2 + to.norm() * 0.01));
+                    ray.ray.direction = (to + off).normalize();
+                }
+            }
+            let spreads: Vec<PoseSpread> = rays.iter().map(PoseSpread::of).collect();
+            let w = FrameSpread::of(&rays, &spreads);
+            let cone = DirectionCone::around_segment(&last, &last_spread, &rig, near, &w, &opts);
+            let directions: Vec<_> = rays.iter().map(|x| x.ray.direction).collect();
+            let index = AzimuthIndex::new(&directions);
+            let seen = visited(&index, &cone);
+            for (k, ray) in rays.iter().enumerate() {
+                let kept = cone.admits(&ray.ray.direction) && seen.contains(&k);
+                let m = gate_two_rays(&last, &last_spread, ray, &spreads[k], &opts);
+                if m.is_some_and(|m| m <= opts.gate_chi2_1dof) {
+                    passed += 1;
+                    assert!(kept, "passing pair dropped: {ray:?} {last:?}");
+                } else if k % 6 == 5 {
+                    // A ray in a random direction that fails the gate.
+                    outside += 1;
+                    dropped_outside += usize::from(!kept);
+                }
+            }
+        }
+        assert!(passed > 3000 && outside > 1000, "{passed} {outside}");
+        // A segment from 1 m to 100 m in front of a camera a few metres away spans a wide
+        // angle: about a third of the random directions fall outside its cone.
+        assert!(
+            dropped_outside * 4 > outside,
+            "{dropped_outside} of {outside}"
+        );
+    }
+
+    /// An azimuth window holds every direction of its cone, across the wrap at azimuth 0
+    /// and near the poles.
+    #[test]
+    fn azimuth_window_holds_its_cone() {
+        let mut r = rng(0xa21);
+        for _ in 0..2000 {
+            let directions: Vec<Vector3<f64>> =
+                (0..40).map(|_| random_unit_vector(&mut r)).collect();
+            let axis = random_unit_vector(&mut r);
+            let half = r.random_range(0.0..1.2f64);
+            let cone = DirectionCone {
+                axis,
+                min_cos: half.cos(),
+                sin_half: half.sin(),
+            };
+            let index = AzimuthIndex::new(&directions);
+            let seen = visited(&index, &cone);
+            for (k, u) in directions.iter().enumerate() {
+                if cone.admits(u) {
+                    assert!(seen.contains(&k), "{u:?} {cone:?}");
+                }
+            }
+        }
+    }
+}
