@@ -128,12 +128,12 @@ fn gate_cone(
     let delta = (gate2 * var).sqrt() / (1.0 - DIRECTION_NORM_TOLERANCE);
     let rho = (delta + w.offset) * (1.0 + CONE_RELATIVE_MARGIN) + CONE_ABSOLUTE_MARGIN;
     let k = rho / d;
-    if !(k < 1.0) {
+    if k.is_nan() || k >= 1.0 {
         return every;
     }
     // u · axis = |u| cos θ ≥ (1 − tolerance) cos θ.
     let min_cos = (1.0 - k * k).sqrt() * (1.0 - DIRECTION_NORM_TOLERANCE) - CONE_ABSOLUTE_MARGIN;
-    if !(min_cos > CONE_MIN_COS) {
+    if min_cos.is_nan() || min_cos <= CONE_MIN_COS {
         return every;
     }
     (in_rig / d, min_cos)

@@ -716,11 +716,11 @@ impl DirectionCone {
         let rho = (opts.gate_chi2_2dof * var).sqrt() + w.offset;
         let rho = rho * (1.0 + CONE_RELATIVE_MARGIN) + CONE_ABSOLUTE_MARGIN;
         let k = rho / lever;
-        if !(k < 1.0) {
+        if k.is_nan() || k >= 1.0 {
             return Self::ALL;
         }
         let min_cos = (1.0 - k * k).sqrt() - CONE_ABSOLUTE_MARGIN;
-        if !(min_cos > CONE_MIN_COS) {
+        if min_cos.is_nan() || min_cos <= CONE_MIN_COS {
             return Self::ALL;
         }
         Self {
@@ -756,7 +756,7 @@ impl DirectionCone {
         let (c1, c2) = (c1 / d1, c2 / d2);
         let sum = c1 + c2;
         let n = sum.norm();
-        if !(n > 0.5) {
+        if n.is_nan() || n <= 0.5 {
             return Self::ALL;
         }
         let axis = sum / n;
@@ -768,7 +768,7 @@ impl DirectionCone {
         let k = k1.max(k2);
         let cos_k = (1.0 - k * k).sqrt();
         let min_cos = cos_a * cos_k - sin_a * k - CONE_ABSOLUTE_MARGIN;
-        if !(min_cos > CONE_MIN_COS) {
+        if min_cos.is_nan() || min_cos <= CONE_MIN_COS {
             return Self::ALL;
         }
         Self {
@@ -856,7 +856,7 @@ impl AzimuthIndex {
         let a = cone.axis;
         let h = (a.x * a.x + a.y * a.y).sqrt();
         let sin_d = cone.sin_half / h + CONE_ABSOLUTE_MARGIN;
-        if !(sin_d < WINDOW_MAX_SIN) {
+        if sin_d.is_nan() || sin_d >= WINDOW_MAX_SIN {
             return all;
         }
         let cos_d = (1.0 - sin_d * sin_d).sqrt();
