@@ -70,6 +70,117 @@ fn predicted_sigma(obs: &ObsRay, c: &Candidate, range: f64, guess: &GuessUncerta
     (obs.sigma_rad * obs.sigma_rad + lateral + guess.rotation_rad * guess.rotation_rad).sqrt()
 }
 
+/// The largest noise terms of a frame's observations, for [`gate_cone`].
+#[derive(Clone, Copy, Debug)]
+struct ObsSpread {
+    /// Largest `σ_obs²` (rad²).
+    sigma2: f64,
+    /// Largest camera offset from the rig origin (metres).
+    offset: f64,
+}
+
+impl ObsSpread {
+    fn of(observations: &[ObsRay]) -> Self {
+        // NaN terms propagate (and then disable the cone).
+        let max = |a: f64, b: f64| if b > a || b.is_nan() { b } else { a };
+        observations.iter().fold(
+            Self {
+                sigma2: 0.0,
+                offset: 0.0,
+            },
+            |w, o| Self {
+                sigma2: max(w.sigma2, o.sigma_rad * o.sigma_rad),
+                offset: max(w.offset, o.ray.origin.norm()),
+            },
+        )
+    }
+}
+
+/// Relative widening of the [`gate_cone`], far above rounding errors.
+const CONE_RELATIVE_MARGIN: f64 = 1e-3;
+/// Absolute widening of the [`gate_cone`] (metres of radius, and cosine).
+const CONE_ABSOLUTE_MARGIN: f64 = 1e-9;
+/// Observation directions may be this far from unit length (see `observation_rays`).
+const DIRECTION_NORM_TOLERANCE: f64 = 1e-5;
+/// Below this cosine of its half-angle the cone does not help: every direction passes.
+const CONE_MIN_COS: f64 = 0.05;
+
+/// A cone `(axis, min_cos)` of rig-frame directions outside which no observation can pass
+/// the gate of [`associate`] for a candidate at `in_rig`: a conservative pre-filter
+/// (`u · axis < min_cos` ⇒ the pair fails the gate), derived from the gate itself.
+///
+/// The gate passes only when the candidate is within `δ = g √(|v|²(σ_obs² + σ_rot²) + σ_lat²)`
+/// of the observation's ray in front of its camera `x` (`v` the candidate from `x`, `|v| ≤
+/// |c| + |x|`); the parallel ray from the rig origin then passes within `ρ = δ + |x|`, so its
+/// direction is within `asin(ρ / |c|)` of the candidate's.
+fn gate_cone(
+    in_rig: &Vector3<f64>,
+    lateral2: f64,
+    rot2: f64,
+    gate2: f64,
+    w: &ObsSpread,
+) -> (Vector3<f64>, f64) {
+    let every = (Vector3::zeros(), f64::NEG_INFINITY);
+    let d = in_rig.norm();
+    let range = d + w.offset;
+    let var = range * range * (w.sigma2 + rot2) + lateral2;
+    // |u × v| ≤ δ with |u| ≥ 1 − tolerance.
+    let delta = (gate2 * var).sqrt() / (1.0 - DIRECTION_NORM_TOLERANCE);
+    let rho = (delta + w.offset) * (1.0 + CONE_RELATIVE_MARGIN) + CONE_ABSOLUTE_MARGIN;
+    let k = rho / d;
+    if k.is_nan() || k >= 1.0 {
+        return every;
+    }
+    // u · axis = |u| cos θ ≥ (1 − tolerance) cos θ.
+    let min_cos = (1.0 - k * k).sqrt() * (1.0 - DIRECTION_NORM_TOLERANCE) - CONE_ABSOLUTE_MARGIN;
+    if min_cos.is_nan() || min_cos <= CONE_MIN_COS {
+        return every;
+    }
+    (in_rig / d, min_cos)
+}
+
+/// The normalised residual `z` of observation `o` against candidate `c` (at `in_rig` in the
+/// rig frame of the pose guess), or `None` when the pair fails the gate `z ≤ gate_sigmas`
+/// (or the classes differ, or the candidate is not in front of the camera).
+#[inline]
+fn pair_z(
+    o: &ObsRay,
+    c: &Candidate,
+    in_rig: &Vector3<f64>,
+    guess: &GuessUncertainty,
+    gate_sigmas: f64,
+) -> Option<f64> {
+    if let (Some(a), Some(b)) = (o.class, c.class)
+        && a != b
+    {
+        return None;
+    }
+    // z² = sin²/σ² with sin² = |u × v|²/|v|² and σ² from `predicted_sigma`, rearranged so
+    // that the gate needs neither a square root nor a division:
+    // |u × v|² ≤ g² (|v|² (σ_obs² + σ_rot²) + σ_pos² + σ_c²).
+    let gate2 = gate_sigmas * gate_sigmas;
+    let rot2 = guess.rotation_rad * guess.rotation_rad;
+    let lateral2 = guess.position_m * guess.position_m + c.sigma_m * c.sigma_m;
+    let v = in_rig - o.ray.origin;
+    let range2 = v.norm_squared();
+    if !range2.is_finite() || range2 <= f64::EPSILON * f64::EPSILON {
+        return None;
+    }
+    if o.ray.direction.dot(&v) <= 0.0 {
+        return None;
+    }
+    let cross2 = o.ray.direction.cross(&v).norm_squared();
+    let var = range2 * (o.sigma_rad * o.sigma_rad + rot2) + lateral2;
+    if cross2 > gate2 * var {
+        return None;
+    }
+    let range = range2.sqrt();
+    let sin = cross2.sqrt() / range;
+    let sigma = predicted_sigma(o, c, range, guess);
+    let z = sin / sigma;
+    (z <= gate_sigmas).then_some(z)
+}
+
 /// Associates observations with candidates one-to-one (smallest normalised residual first)
 /// from the pose guess; returns per observation the candidate index.
 fn associate(
@@ -82,39 +193,20 @@ fn associate(
 ) -> Vec<Option<usize>> {
     pairs.clear();
     let rig_from_world = pose.inverse();
-    // z² = sin²/σ² with sin² = |u × v|²/|v|² and σ² from `predicted_sigma`, rearranged so
-    // that the gate needs neither a square root nor a division:
-    // |u × v|² ≤ g² (|v|² (σ_obs² + σ_rot²) + σ_pos² + σ_c²).
+    // The terms of the gate of `pair_z`, for its cone.
     let gate2 = gate_sigmas * gate_sigmas;
     let rot2 = guess.rotation_rad * guess.rotation_rad;
     let pos2 = guess.position_m * guess.position_m;
+    let worst = ObsSpread::of(observations);
     for (ci, c) in candidates.iter().enumerate() {
         let in_rig = rig_from_world * nalgebra::Point3::from(c.position);
         let lateral2 = pos2 + c.sigma_m * c.sigma_m;
+        let (axis, min_cos) = gate_cone(&in_rig.coords, lateral2, rot2, gate2, &worst);
         for (oi, o) in observations.iter().enumerate() {
-            if let (Some(a), Some(b)) = (o.class, c.class)
-                && a != b
-            {
+            if o.ray.direction.dot(&axis) < min_cos {
                 continue;
             }
-            let v = in_rig.coords - o.ray.origin;
-            let range2 = v.norm_squared();
-            if !range2.is_finite() || range2 <= f64::EPSILON * f64::EPSILON {
-                continue;
-            }
-            if o.ray.direction.dot(&v) <= 0.0 {
-                continue;
-            }
-            let cross2 = o.ray.direction.cross(&v).norm_squared();
-            let var = range2 * (o.sigma_rad * o.sigma_rad + rot2) + lateral2;
-            if cross2 > gate2 * var {
-                continue;
-            }
-            let range = range2.sqrt();
-            let sin = cross2.sqrt() / range;
-            let sigma = predicted_sigma(o, c, range, guess);
-            let z = sin / sigma;
-            if z <= gate_sigmas {
+            if let Some(z) = pair_z(o, c, &in_rig.coords, guess, gate_sigmas) {
                 pairs.push((z, oi, ci));
             }
         }
@@ -235,4 +327,79 @@ pub(crate) fn track(
         }
     }
     result
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synthetic::{random_unit_vector, rng};
+    use rand::RngExt;
+
+    /// The cone of [`gate_cone`] never rejects a pair that [`pair_z`] accepts (directions of
+    /// every length the localizer accepts, cameras off the rig origin), and it does reject
+    /// most pairs well outside the gate.
+    #[test]
+    fn gate_cone_never_rejects_a_passing_pair() {
+        let mut r = rng(0x5eed_c0de);
+        let (mut passed, mut outside, mut rejected_outside) = (0, 0, 0);
+        for _ in 0..3000 {
+            let guess = GuessUncertainty {
+                position_m: r.random_range(0.001..2.0),
+                rotation_rad: r.random_range(1e-5..0.02),
+            };
+            let c = Candidate {
+                position: random_unit_vector(&mut r) * r.random_range(0.5..150.0),
+                sigma_m: r.random_range(0.0..1.0),
+                class: None,
+                source: CandidateSource::Surveyed(0),
+                common_covariance: None,
+            };
+            let observations: Vec<ObsRay> = (0..20)
+                .map(|_| {
+                    let origin = random_unit_vector(&mut r) * r.random_range(0.0..0.3);
+                    let sigma_rad: f64 = r.random_range(1e-4..5e-3);
+                    let to = c.position - origin;
+                    // Aim at the candidate, off by 0 to 4 angular gate widths.
+                    let width = ASSOCIATION_GATE_SIGMAS
+                        * (sigma_rad.powi(2)
+                            + guess.rotation_rad.powi(2)
+                            + (guess.position_m.powi(2) + c.sigma_m.powi(2)) / to.norm_squared())
+                        .sqrt();
+                    let off = random_unit_vector(&mut r) * (r.random_range(0.0..4.0) * width);
+                    let direction =
+                        (to.normalize() + off).normalize() * (1.0 + r.random_range(-1e-6..1e-6));
+                    ObsRay {
+                        ray: Ray { origin, direction },
+                        sigma_rad,
+                        class: None,
+                    }
+                })
+                .collect();
+            let worst = ObsSpread::of(&observations);
+            let lateral2 = guess.position_m.powi(2) + c.sigma_m.powi(2);
+            let gate2 = ASSOCIATION_GATE_SIGMAS * ASSOCIATION_GATE_SIGMAS;
+            let (axis, min_cos) = gate_cone(
+                &c.position,
+                lateral2,
+                guess.rotation_rad.powi(2),
+                gate2,
+                &worst,
+            );
+            for o in &observations {
+                let admitted = o.ray.direction.dot(&axis) >= min_cos;
+                if pair_z(o, &c, &c.position, &guess, ASSOCIATION_GATE_SIGMAS).is_some() {
+                    passed += 1;
+                    assert!(admitted, "passing pair rejected: {o:?} {c:?} {guess:?}");
+                } else {
+                    outside += 1;
+                    rejected_outside += usize::from(!admitted);
+                }
+            }
+        }
+        assert!(passed > 10_000 && outside > 10_000, "{passed} {outside}");
+        assert!(
+            rejected_outside * 2 > outside,
+            "the cone rejects only {rejected_outside} of {outside} failing pairs"
+        );
+    }
 }

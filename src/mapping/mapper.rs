@@ -11,6 +11,7 @@ use crate::triangulation::{
     RayObservation, RaySum, TriangulatedPoint, TriangulationError, intersect_two_rays,
 };
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
+use std::ops::Range;
 
 /// Options of the [`LandmarkMapper`]; `Default` gives the documented constants.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -311,29 +312,48 @@ impl LandmarkMapper {
             rays.iter().map(MapRay::effective_observation).collect();
         let spreads: Vec<PoseSpread> = rays.iter().map(PoseSpread::of).collect();
         let opts = self.options;
+        // The directions, contiguous, for the cone pre-filters below, and the frame's largest
+        // noise terms (every bound of the gates holds with them).
+        let directions: Vec<Vector3<f64>> = rays.iter().map(|r| r.ray.direction).collect();
+        let frame_spread = FrameSpread::of(&rays, &spreads);
+        let near = MIN_RANGE_M.min(0.5 * opts.max_range_m);
+        let by_azimuth = AzimuthIndex::new(&directions);
         // (priority: 0 = track with an estimate, 1 = tentative; m; observation; track)
         let mut candidates: Vec<(u8, f64, usize, usize)> = Vec::new();
         for (ti, track) in self.tracks.iter().enumerate() {
             match &track.estimate {
                 Some(est) => {
-                    if (est.point - rig_origin).norm() > opts.max_range_m * 1.5 {
+                    let lever = (est.point - rig_origin).norm();
+                    if lever > opts.max_range_m * 1.5 {
                         continue;
                     }
                     let est_trace = est.covariance.trace().max(0.0);
-                    for (k, (o, ray)) in frame.observations.iter().zip(&rays).enumerate() {
-                        if !classes_match(track.class, o.class) {
-                            continue;
-                        }
-                        if let Some(m) = gate_estimate(
-                            est,
-                            est_trace,
-                            ray,
-                            &spreads[k],
-                            opts.max_range_m,
-                            opts.gate_chi2_2dof,
-                        ) && m <= opts.gate_chi2_2dof
-                        {
-                            candidates.push((0, m, k, ti));
+                    let cone = DirectionCone::around_estimate(
+                        &est.point,
+                        est_trace,
+                        &rig_origin,
+                        lever,
+                        &frame_spread,
+                        &opts,
+                    );
+                    for range in by_azimuth.window(&cone) {
+                        for &k in &by_azimuth.order[range] {
+                            let (o, ray) = (&frame.observations[k], &rays[k]);
+                            if !cone.admits(&directions[k]) || !classes_match(track.class, o.class)
+                            {
+                                continue;
+                            }
+                            if let Some(m) = gate_estimate(
+                                est,
+                                est_trace,
+                                ray,
+                                &spreads[k],
+                                opts.max_range_m,
+                                opts.gate_chi2_2dof,
+                            ) && m <= opts.gate_chi2_2dof
+                            {
+                                candidates.push((0, m, k, ti));
+                            }
                         }
                     }
                 }
@@ -344,39 +364,65 @@ impl LandmarkMapper {
                     if (last.ray.origin - rig_origin).norm() > 2.0 * opts.max_range_m {
                         continue;
                     }
-                    for (k, (o, ray)) in frame.observations.iter().zip(&rays).enumerate() {
-                        if !classes_match(track.class, o.class) {
-                            continue;
-                        }
-                        // The new ray must pass near every recent ray of the track.
-                        let start = track.rays.len().saturating_sub(MAX_PAIRWISE_RAYS);
-                        // Most recent first; stop at the first ray that fails the gate.
-                        let mut worst = Some(0.0f64);
-                        for (r, rs) in track.rays[start..]
-                            .iter()
-                            .zip(&track.spreads[start..])
-                            .rev()
-                        {
-                            match gate_two_rays(r, rs, ray, &spreads[k], &opts) {
-                                Some(m) if m <= opts.gate_chi2_1dof => {
-                                    worst = worst.map(|w| w.max(m));
-                                }
-                                _ => {
-                                    worst = None;
-                                    break;
+                    // The gate below starts with the last ray, and a ray that fails it is not
+                    // a candidate: only the directions that can pass it are gated.
+                    let last_spread = track.spreads.last().copied().unwrap_or(PoseSpread {
+                        pos: f64::INFINITY,
+                        rot: f64::INFINITY,
+                        offset: f64::INFINITY,
+                    });
+                    let cone = DirectionCone::around_segment(
+                        last,
+                        &last_spread,
+                        &rig_origin,
+                        near,
+                        &frame_spread,
+                        &opts,
+                    );
+                    for range in by_azimuth.window(&cone) {
+                        for &k in &by_azimuth.order[range] {
+                            let (o, ray) = (&frame.observations[k], &rays[k]);
+                            if !cone.admits(&directions[k]) || !classes_match(track.class, o.class)
+                            {
+                                continue;
+                            }
+                            // The new ray must pass near every recent ray of the track.
+                            let start = track.rays.len().saturating_sub(MAX_PAIRWISE_RAYS);
+                            // Most recent first; stop at the first ray that fails the gate.
+                            let mut worst = Some(0.0f64);
+                            for (r, rs) in track.rays[start..]
+                                .iter()
+                                .zip(&track.spreads[start..])
+                                .rev()
+                            {
+                                match gate_two_rays(r, rs, ray, &spreads[k], &opts) {
+                                    Some(m) if m <= opts.gate_chi2_1dof => {
+                                        worst = worst.map(|w| w.max(m));
+                                    }
+                                    _ => {
+                                        worst = None;
+                                        break;
+                                    }
                                 }
                             }
-                        }
-                        if let Some(m) = worst
-                            && m <= opts.gate_chi2_1dof
-                        {
-                            candidates.push((1, m, k, ti));
+                            if let Some(m) = worst
+                                && m <= opts.gate_chi2_1dof
+                            {
+                                candidates.push((1, m, k, ti));
+                            }
                         }
                     }
                 }
             }
         }
-        candidates.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
+        // By priority and m; ties in (track, observation) order, so that the assignment does
+        // not depend on the order the windows gave the pairs in.
+        candidates.sort_unstable_by(|a, b| {
+            a.0.cmp(&b.0)
+                .then(a.1.total_cmp(&b.1))
+                .then(a.3.cmp(&b.3))
+                .then(a.2.cmp(&b.2))
+        });
         let mut obs_track: Vec<Option<usize>> = vec![None; rays.len()];
         let mut track_used = vec![false; self.tracks.len()];
         for &(_, _, k, ti) in &candidates {
@@ -578,6 +624,268 @@ impl PoseSpread {
     }
 }
 
+/// The largest noise terms of one frame's rays: with them, [`PoseSpread::variance_bound`]
+/// bounds the residual variance of every ray of the frame.
+#[derive(Clone, Copy, Debug)]
+struct FrameSpread {
+    /// Largest `√tr Σ_pp` (metres).
+    pos: f64,
+    /// Largest `√tr Σ_θθ` (radians).
+    rot: f64,
+    /// Largest camera offset from the rig origin (metres).
+    offset: f64,
+    /// Largest camera bearing σ (radians).
+    sigma_rad: f64,
+}
+
+impl FrameSpread {
+    fn of(rays: &[MapRay], spreads: &[PoseSpread]) -> Self {
+        let mut w = Self {
+            pos: 0.0,
+            rot: 0.0,
+            offset: 0.0,
+            sigma_rad: 0.0,
+        };
+        // A NaN term makes the bound NaN, and a NaN bound disables the pre-filters.
+        let max = |a: f64, b: f64| if b > a || b.is_nan() { b } else { a };
+        for (r, s) in rays.iter().zip(spreads) {
+            w.pos = max(w.pos, s.pos);
+            w.rot = max(w.rot, s.rot);
+            w.offset = max(w.offset, s.offset);
+            w.sigma_rad = max(w.sigma_rad, r.sigma_rad);
+        }
+        w
+    }
+
+    fn variance_bound(&self, lever: f64, range: f64) -> f64 {
+        (self.pos + lever * self.rot).powi(2) + (range * self.sigma_rad).powi(2)
+    }
+}
+
+/// Relative widening of the pre-filter cones, far above rounding errors: the cones only
+/// skip pairs whose gate value is well beyond the gate.
+const CONE_RELATIVE_MARGIN: f64 = 1e-3;
+/// Absolute widening of the pre-filter cones (metres of radius, and cosine).
+const CONE_ABSOLUTE_MARGIN: f64 = 1e-9;
+/// Below this cosine of its half-angle a cone is not convex enough to help: no filter.
+const CONE_MIN_COS: f64 = 0.05;
+
+/// A cone of directions from the rig origin outside which a gate cannot pass: a conservative
+/// pre-filter that skips (track, observation) pairs without changing the gates' results.
+///
+/// Both gates pass only when a point `q_x` of the new ray, in front of its camera `x`, lies
+/// within `δ = √(gate · variance bound)` of the track (its estimate, or a segment of its
+/// last ray). The point `q = t + (q_x − x)` on the parallel ray from the rig origin `t` is
+/// then within `ρ = δ + |x − t|` of it, so the ray's direction lies in the cone from `t`
+/// that contains the ball (or capsule) of radius `ρ` around the track.
+#[derive(Clone, Copy, Debug)]
+struct DirectionCone {
+    /// Unit axis, or zero for the cone of every direction.
+    axis: Vector3<f64>,
+    /// Cosine of the half-angle (−∞ for every direction).
+    min_cos: f64,
+    /// Sine of the half-angle (widened like `min_cos`; ∞ for every direction).
+    sin_half: f64,
+}
+
+impl DirectionCone {
+    const ALL: Self = Self {
+        axis: Vector3::new(0.0, 0.0, 0.0),
+        min_cos: f64::NEG_INFINITY,
+        sin_half: f64::INFINITY,
+    };
+
+    /// True when the unit direction `u` may pass the gate.
+    #[inline]
+    fn admits(&self, u: &Vector3<f64>) -> bool {
+        u.dot(&self.axis) >= self.min_cos
+    }
+
+    /// The cone of [`gate_estimate`] for an estimate at `point`, `lever` from the rig origin.
+    /// The ray's range to the point is at most `lever` + camera offset (and `max_range_m`).
+    fn around_estimate(
+        point: &Vector3<f64>,
+        est_trace: f64,
+        rig_origin: &Vector3<f64>,
+        lever: f64,
+        w: &FrameSpread,
+        opts: &MapperOptions,
+    ) -> Self {
+        let range = (lever + w.offset).min(opts.max_range_m);
+        let var = est_trace + w.variance_bound(lever, range);
+        let rho = (opts.gate_chi2_2dof * var).sqrt() + w.offset;
+        let rho = rho * (1.0 + CONE_RELATIVE_MARGIN) + CONE_ABSOLUTE_MARGIN;
+        let k = rho / lever;
+        if k.is_nan() || k >= 1.0 {
+            return Self::ALL;
+        }
+        let min_cos = (1.0 - k * k).sqrt() - CONE_ABSOLUTE_MARGIN;
+        if min_cos.is_nan() || min_cos <= CONE_MIN_COS {
+            return Self::ALL;
+        }
+        Self {
+            axis: (point - rig_origin) / lever,
+            min_cos,
+            sin_half: k + CONE_ABSOLUTE_MARGIN,
+        }
+    }
+
+    /// The cone of [`gate_two_rays`] against the track ray `a` (its segment from `near` to
+    /// `max_range_m` in front of its camera), for the rays of a frame with rig origin
+    /// `rig_origin`. Both closest points are at most `max_range_m` from their cameras.
+    fn around_segment(
+        a: &MapRay,
+        a_spread: &PoseSpread,
+        rig_origin: &Vector3<f64>,
+        near: f64,
+        w: &FrameSpread,
+        opts: &MapperOptions,
+    ) -> Self {
+        let l = opts.max_range_m;
+        let var = a_spread.variance_bound(l + a_spread.offset, l, a.sigma_rad)
+            + w.variance_bound(l + w.offset, l);
+        let rho = (opts.gate_chi2_1dof * var).sqrt() + w.offset;
+        let rho = rho * (1.0 + CONE_RELATIVE_MARGIN) + CONE_ABSOLUTE_MARGIN;
+        let c1 = a.ray.at(near) - rig_origin;
+        let c2 = a.ray.at(l) - rig_origin;
+        let (d1, d2) = (c1.norm(), c2.norm());
+        let (k1, k2) = (rho / d1, rho / d2);
+        if !(k1 < 1.0 && k2 < 1.0) {
+            return Self::ALL;
+        }
+        let (c1, c2) = (c1 / d1, c2 / d2);
+        let sum = c1 + c2;
+        let n = sum.norm();
+        if n.is_nan() || n <= 0.5 {
+            return Self::ALL;
+        }
+        let axis = sum / n;
+        // Half the angle between the end directions, from the axis (sine from the cross
+        // product: accurate for small angles).
+        let cos_a = c1.dot(&axis);
+        let sin_a = c1.cross(&axis).norm();
+        // cos(α + asin k) for the larger k (the larger half-angle).
+        let k = k1.max(k2);
+        let cos_k = (1.0 - k * k).sqrt();
+        let min_cos = cos_a * cos_k - sin_a * k - CONE_ABSOLUTE_MARGIN;
+        if min_cos.is_nan() || min_cos <= CONE_MIN_COS {
+            return Self::ALL;
+        }
+        Self {
+            axis,
+            min_cos,
+            sin_half: sin_a * cos_k + cos_a * k + CONE_ABSOLUTE_MARGIN,
+        }
+    }
+}
+
+/// A monotonic stand-in for the azimuth `atan2(y, x)` of a horizontal direction, in
+/// `[0, 4)` (0 along +x, 1 along +y, 2 along −x, 3 along −y); NaN for `(0, 0)`.
+#[inline]
+fn pseudo_azimuth(x: f64, y: f64) -> f64 {
+    let p = x / (x.abs() + y.abs());
+    if y < 0.0 { 3.0 + p } else { 1.0 - p }
+}
+
+/// Largest `sin Δ` of an azimuth window (`Δ` its half-width); wider cones scan everything.
+const WINDOW_MAX_SIN: f64 = 0.95;
+
+/// Number of azimuth buckets of an [`AzimuthIndex`] (over the 4 units of [`pseudo_azimuth`]).
+const AZIMUTH_BUCKETS: usize = 64;
+
+/// A frame's observations sorted by azimuth, so that a track only visits the observations
+/// in the azimuth window of its [`DirectionCone`].
+#[derive(Debug)]
+struct AzimuthIndex {
+    /// The observations by increasing [`pseudo_azimuth`], then those without an azimuth
+    /// (straight up or down), which every window includes.
+    order: Vec<usize>,
+    /// Number of observations with an azimuth (the sorted part of `order`).
+    n_sorted: usize,
+    /// `bucket_start[b]`: the first position of `order` whose key is at least
+    /// `4 b / AZIMUTH_BUCKETS`.
+    bucket_start: [usize; AZIMUTH_BUCKETS + 1],
+}
+
+impl AzimuthIndex {
+    fn new(directions: &[Vector3<f64>]) -> Self {
+        let mut keyed = Vec::with_capacity(directions.len());
+        let mut polar = Vec::new();
+        for (k, u) in directions.iter().enumerate() {
+            let key = pseudo_azimuth(u.x, u.y);
+            if key.is_finite() {
+                keyed.push((key, k));
+            } else {
+                polar.push(k);
+            }
+        }
+        keyed.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let mut bucket_start = [keyed.len(); AZIMUTH_BUCKETS + 1];
+        let mut b = 0;
+        for (i, (key, _)) in keyed.iter().enumerate() {
+            let kb = Self::bucket(*key);
+            while b <= kb {
+                bucket_start[b] = i;
+                b += 1;
+            }
+        }
+        let n_sorted = keyed.len();
+        let mut order: Vec<usize> = keyed.into_iter().map(|e| e.1).collect();
+        order.extend(polar);
+        Self {
+            order,
+            n_sorted,
+            bucket_start,
+        }
+    }
+
+    /// The bucket of a key in `[0, 4)` (clamped).
+    #[inline]
+    fn bucket(key: f64) -> usize {
+        // `as` saturates: negative keys go to bucket 0.
+        ((key * (AZIMUTH_BUCKETS as f64 / 4.0)) as usize).min(AZIMUTH_BUCKETS - 1)
+    }
+
+    /// Ranges of `order` holding a superset of the observations whose direction is in
+    /// `cone`: a cone of half-angle `β` around an axis at elevation `θ` spans the azimuths
+    /// within `Δ = asin(sin β / cos θ)` of the axis's (when `β < 90° − |θ|`); whole buckets
+    /// of that window are visited. Everything when the cone is too wide.
+    #[inline]
+    fn window(&self, cone: &DirectionCone) -> [Range<usize>; 3] {
+        let all = [0..self.order.len(), 0..0, 0..0];
+        let a = cone.axis;
+        let h = (a.x * a.x + a.y * a.y).sqrt();
+        let sin_d = cone.sin_half / h + CONE_ABSOLUTE_MARGIN;
+        if sin_d.is_nan() || sin_d >= WINDOW_MAX_SIN {
+            return all;
+        }
+        let cos_d = (1.0 - sin_d * sin_d).sqrt();
+        let (hx, hy) = (a.x / h, a.y / h);
+        let mut lo =
+            pseudo_azimuth(hx * cos_d + hy * sin_d, hy * cos_d - hx * sin_d) - CONE_ABSOLUTE_MARGIN;
+        let mut hi =
+            pseudo_azimuth(hx * cos_d - hy * sin_d, hy * cos_d + hx * sin_d) + CONE_ABSOLUTE_MARGIN;
+        if !(lo.is_finite() && hi.is_finite()) {
+            return all;
+        }
+        if lo < 0.0 {
+            lo += 4.0;
+        }
+        if hi >= 4.0 {
+            hi -= 4.0;
+        }
+        let first = self.bucket_start[Self::bucket(lo)];
+        let past = self.bucket_start[Self::bucket(hi) + 1];
+        let polar = self.n_sorted..self.order.len();
+        if lo <= hi {
+            [first..past, polar, 0..0]
+        } else {
+            // The window wraps through azimuth 0.
+            [first..self.n_sorted, 0..past, polar]
+        }
+    }
+}
+
 /// True when two optional class labels may belong to one landmark.
 #[inline]
 fn classes_match(a: Option<u32>, b: Option<u32>) -> bool {
@@ -701,4 +1009,222 @@ fn gate_two_rays(
     let var = ray_residual_variance(a, &pa, &gh) + ray_residual_variance(b, &pb, &gh);
     let m = gap2 / var;
     m.is_finite().then_some(m)
+}
+
+#[cfg(test)]
+mod cone_tests {
+    use super::*;
+    use crate::geometry::Ray;
+    use crate::synthetic::{random_unit_vector, rng};
+    use nalgebra::{Matrix6, SMatrix};
+    use rand::{Rng, RngExt};
+
+    /// A random pose covariance: position σ 1 cm – `max_m`, attitude σ 0.1 mrad – `max_rad`,
+    /// correlated.
+    fn pose_covariance<R: Rng + ?Sized>(r: &mut R, max_m: f64, max_rad: f64) -> Matrix6<f64> {
+        let a = SMatrix::<f64, 6, 6>::from_fn(|_, _| r.random_range(-1.0..1.0));
+        let (sp, sr) = (r.random_range(0.01..max_m), r.random_range(1e-4..max_rad));
+        let d = Matrix6::from_diagonal(&nalgebra::Vector6::new(sp, sp, sp, sr, sr, sr));
+        d * (a * a.transpose() / 6.0 + Matrix6::identity() * 0.1) * d
+    }
+
+    /// One frame: rays from cameras around `rig`, each aimed at `target` off by 0 to 4
+    /// times `width(range)` (metres), or anywhere.
+    fn frame_rays<R: Rng + ?Sized>(
+        r: &mut R,
+        rig: &Vector3<f64>,
+        target: &Vector3<f64>,
+        pose_covariance: Matrix6<f64>,
+        width: impl Fn(f64) -> f64,
+    ) -> Vec<MapRay> {
+        (0..24)
+            .map(|k| {
+                let origin = rig + random_unit_vector(r) * r.random_range(0.0..0.3);
+                let to = target - origin;
+                let direction = if k % 6 == 5 {
+                    random_unit_vector(r)
+                } else {
+                    let off = random_unit_vector(r) * (r.random_range(0.0..4.0) * width(to.norm()));
+                    (to + off).normalize()
+                };
+                MapRay {
+                    ray: Ray { origin, direction },
+                    rig_origin: *rig,
+                    pose_covariance,
+                    sigma_rad: r.random_range(1e-4..3e-3),
+                }
+            })
+            .collect()
+    }
+
+    /// The observations an [`AzimuthIndex`] window visits.
+    fn visited(index: &AzimuthIndex, cone: &DirectionCone) -> Vec<usize> {
+        index
+            .window(cone)
+            .into_iter()
+            .flat_map(|range| index.order[range].iter().copied())
+            .collect()
+    }
+
+    /// The estimate cone and its azimuth window never drop a pair that `gate_estimate`
+    /// passes, and they drop most of the pairs it fails.
+    #[test]
+    fn estimate_cone_never_rejects_a_passing_pair() {
+        let mut r = rng(0xc0e5);
+        let opts = MapperOptions::default();
+        let (mut passed, mut outside, mut dropped_outside) = (0, 0, 0);
+        for _ in 0..1500 {
+            let rig = Vector3::new(
+                r.random_range(-50.0..50.0),
+                r.random_range(-50.0..50.0),
+                r.random_range(0.0..3.0),
+            );
+            let point = rig + random_unit_vector(&mut r) * r.random_range(1.0..140.0);
+            let s = r.random_range(0.005..2.0);
+            let c = pose_covariance(&mut r, 1.0, 0.02)
+                .fixed_view::<3, 3>(0, 0)
+                .into_owned()
+                * (s * s);
+            let est = TriangulatedPoint {
+                point,
+                covariance: c,
+                n_obs: 5,
+                max_parallax_sin_cos: (0.1, 1.0),
+            };
+            let est_trace = c.trace().max(0.0);
+            let cov = pose_covariance(&mut r, 1.0, 0.02);
+            let rays = frame_rays(&mut r, &rig, &point, cov, |range| {
+                s * 4.0 + range * 0.01 + 0.5
+            });
+            let spreads: Vec<PoseSpread> = rays.iter().map(PoseSpread::of).collect();
+            let w = FrameSpread::of(&rays, &spreads);
+            let lever = (point - rig).norm();
+            let cone = DirectionCone::around_estimate(&point, est_trace, &rig, lever, &w, &opts);
+            let directions: Vec<_> = rays.iter().map(|x| x.ray.direction).collect();
+            let index = AzimuthIndex::new(&directions);
+            let seen = visited(&index, &cone);
+            for (k, ray) in rays.iter().enumerate() {
+                let kept = cone.admits(&ray.ray.direction) && seen.contains(&k);
+                let m = gate_estimate(
+                    &est,
+                    est_trace,
+                    ray,
+                    &spreads[k],
+                    opts.max_range_m,
+                    opts.gate_chi2_2dof,
+                );
+                if m.is_some_and(|m| m <= opts.gate_chi2_2dof) {
+                    passed += 1;
+                    assert!(kept, "passing pair dropped: {ray:?} {est:?}");
+                } else {
+                    outside += 1;
+                    dropped_outside += usize::from(!kept);
+                }
+            }
+        }
+        assert!(passed > 3000 && outside > 3000, "{passed} {outside}");
+        assert!(
+            dropped_outside * 2 > outside,
+            "{dropped_outside} of {outside}"
+        );
+    }
+
+    /// The segment cone and its azimuth window never drop a pair whose first gate
+    /// (`gate_two_rays` against the track's last ray) passes, and drop a good part of
+    /// the rays in random directions.
+    #[test]
+    fn segment_cone_never_rejects_a_passing_pair() {
+        let mut r = rng(0x5e9);
+        let opts = MapperOptions::default();
+        let near = MIN_RANGE_M.min(0.5 * opts.max_range_m);
+        let (mut passed, mut outside, mut dropped_outside) = (0, 0, 0);
+        for _ in 0..1500 {
+            let rig = Vector3::new(
+                r.random_range(-50.0..50.0),
+                r.random_range(-50.0..50.0),
+                r.random_range(0.0..3.0),
+            );
+            // The track's last ray, seen from up to 5 m away (or, for narrow cones, 20 – 60 m
+            // away), at a landmark 1.5 – 120 m off.
+            let gap = if r.random_range(0.0..1.0) < 0.5 {
+                r.random_range(0.0..5.0)
+            } else {
+                r.random_range(20.0..60.0)
+            };
+            let before = rig + random_unit_vector(&mut r) * gap;
+            let landmark = rig + random_unit_vector(&mut r) * r.random_range(1.5..120.0);
+            // Pose σ up to 20 cm and 2 mrad (a tracked drive).
+            let cov = pose_covariance(&mut r, 0.2, 2e-3);
+            let last = frame_rays(&mut r, &before, &landmark, cov, |_| 0.0)[0];
+            let last_spread = PoseSpread::of(&last);
+            let cov = pose_covariance(&mut r, 0.2, 2e-3);
+            let mut rays = frame_rays(&mut r, &rig, &landmark, cov, |range| 0.2 + range * 0.01);
+            // Half of the aimed rays at other points of the track's segment instead.
+            for (k, ray) in rays.iter_mut().enumerate() {
+                if k % 6 < 3 {
+                    // Along the segment, or up to 3 m past either end.
+                    let along = match k % 6 {
+                        0 => r.random_range(near..opts.max_range_m),
+                        1 => opts.max_range_m + r.random_range(0.0..3.0),
+                        _ => near - r.random_range(0.0..3.0),
+                    };
+                    let target = last.ray.at(along);
+                    let to = target - ray.ray.origin;
+                    let off = random_unit_vector(&mut r)
+                        * (r.random_range(0.0..4.0) * (0.2 + to.norm() * 0.01));
+                    ray.ray.direction = (to + off).normalize();
+                }
+            }
+            let spreads: Vec<PoseSpread> = rays.iter().map(PoseSpread::of).collect();
+            let w = FrameSpread::of(&rays, &spreads);
+            let cone = DirectionCone::around_segment(&last, &last_spread, &rig, near, &w, &opts);
+            let directions: Vec<_> = rays.iter().map(|x| x.ray.direction).collect();
+            let index = AzimuthIndex::new(&directions);
+            let seen = visited(&index, &cone);
+            for (k, ray) in rays.iter().enumerate() {
+                let kept = cone.admits(&ray.ray.direction) && seen.contains(&k);
+                let m = gate_two_rays(&last, &last_spread, ray, &spreads[k], &opts);
+                if m.is_some_and(|m| m <= opts.gate_chi2_1dof) {
+                    passed += 1;
+                    assert!(kept, "passing pair dropped: {ray:?} {last:?}");
+                } else if k % 6 == 5 {
+                    // A ray in a random direction that fails the gate.
+                    outside += 1;
+                    dropped_outside += usize::from(!kept);
+                }
+            }
+        }
+        assert!(passed > 3000 && outside > 1000, "{passed} {outside}");
+        // A segment from 1 m to 100 m in front of a camera a few metres away spans a wide
+        // angle: about a third of the random directions fall outside its cone.
+        assert!(
+            dropped_outside * 4 > outside,
+            "{dropped_outside} of {outside}"
+        );
+    }
+
+    /// An azimuth window holds every direction of its cone, across the wrap at azimuth 0
+    /// and near the poles.
+    #[test]
+    fn azimuth_window_holds_its_cone() {
+        let mut r = rng(0xa21);
+        for _ in 0..2000 {
+            let directions: Vec<Vector3<f64>> =
+                (0..40).map(|_| random_unit_vector(&mut r)).collect();
+            let axis = random_unit_vector(&mut r);
+            let half = r.random_range(0.0..1.2f64);
+            let cone = DirectionCone {
+                axis,
+                min_cos: half.cos(),
+                sin_half: half.sin(),
+            };
+            let index = AzimuthIndex::new(&directions);
+            let seen = visited(&index, &cone);
+            for (k, u) in directions.iter().enumerate() {
+                if cone.admits(u) {
+                    assert!(seen.contains(&k), "{u:?} {cone:?}");
+                }
+            }
+        }
+    }
 }

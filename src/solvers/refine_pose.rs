@@ -494,6 +494,57 @@ fn residual(
     Some((r, dr_dv, angle))
 }
 
+/// The residual of [`residual`] alone (same operations, bit for bit), without its
+/// Jacobian: for [`linearity_ratio`], which evaluates three poses per observation.
+#[inline]
+fn residual_value(direction: &Vector3<f64>, v: &Vector3<f64>) -> Option<Vector2<f64>> {
+    let len = v.norm();
+    if !(len > MIN_POINT_DISTANCE_M && len.is_finite()) {
+        return None;
+    }
+    let u = v / len;
+    let (t1, t2) = tangent_basis(direction);
+    let tangent = Matrix2x3::from_rows(&[t1.transpose(), t2.transpose()]);
+    let s = tangent * u;
+    let sin = s.norm();
+    let c = direction.dot(&u);
+    let angle = if c > 0.0 && sin < ASIN_SERIES_LIMIT {
+        let s2 = sin * sin;
+        sin * (1.0 + s2 * (1.0 / 6.0 + s2 * (3.0 / 40.0 + s2 * (5.0 / 112.0))))
+    } else {
+        sin.atan2(c)
+    };
+    Some(if angle <= SMALL_ANGLE_RAD {
+        let phi = if angle < SERIES_ANGLE_RAD {
+            1.0 + angle * angle / 6.0
+        } else {
+            angle / sin
+        };
+        s * phi
+    } else if sin > ANTIPODE_SIN_TOLERANCE {
+        (s / sin) * angle
+    } else {
+        s.try_normalize(0.0).unwrap_or_else(Vector2::x) * angle
+    })
+}
+
+/// The residual of [`observation`] alone (see [`residual_value`]).
+#[inline]
+fn observation_residual(
+    rig_from_world: &Matrix3<f64>,
+    position: &Vector3<f64>,
+    ray: &Ray,
+    point: &Vector3<f64>,
+) -> Option<Vector2<f64>> {
+    let norm = ray.direction.norm();
+    if !(norm > MIN_DIRECTION_NORM && norm.is_finite()) {
+        return None;
+    }
+    let direction = ray.direction / norm;
+    let v = rig_from_world * (point - position) - ray.origin;
+    residual_value(&direction, &v)
+}
+
 /// Residual, Jacobian (2×6, w.r.t. `[δp, δθ]`) and exact angle of one observation, given
 /// `rig_from_world = Rᵀ` and the rig position; `None` if the point is on the ray origin.
 #[inline]
@@ -775,13 +826,13 @@ fn linearity_ratio(
     let mut rise = [0.0; 2];
     for (i, (ray, point)) in rays.iter().zip(points).enumerate() {
         let sigma = sigmas.map_or(options.sigma_rad, |s| s[i]);
-        let Some((r, _, _)) = observation(&rig_from_world, position, ray, point) else {
+        let Some(r) = observation_residual(&rig_from_world, position, ray, point) else {
             return 0.0;
         };
         let base = r.norm_squared();
         let information = options.loss.evaluate(base.sqrt()).1 / (sigma * sigma);
         for (rise, (moved_rig_from_world, moved_position)) in rise.iter_mut().zip(&poses) {
-            let Some((r, _, _)) = observation(moved_rig_from_world, moved_position, ray, point)
+            let Some(r) = observation_residual(moved_rig_from_world, moved_position, ray, point)
             else {
                 return 0.0;
             };
