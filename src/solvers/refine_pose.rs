@@ -434,15 +434,21 @@ struct Linearization {
     sum_sq_angle: f64,
 }
 
-/// The residual of one observation and its Jacobian with respect to `vᵢ` (rig frame), or
-/// `None` when `vᵢ` is too short (the point sits on the ray origin) or not finite.
-///
-/// Returns `(r, ∂r/∂v, θ)` with `r = θ·ŝ`, the log map of `u` at `d` in the tangent basis.
-#[inline]
-fn residual(
-    direction: &Vector3<f64>,
-    v: &Vector3<f64>,
-) -> Option<(Vector2<f64>, Matrix2x3<f64>, f64)> {
+/// The first steps shared by [`residual`] and [`residual_value`]: the unit direction
+/// `u = v/|v|`, its tangent coordinates `s = T·u` at `direction`, and the angle θ between
+/// them.
+struct ResidualParts {
+    len: f64,
+    u: Vector3<f64>,
+    tangent: Matrix2x3<f64>,
+    s: Vector2<f64>,
+    sin: f64,
+    c: f64,
+    angle: f64,
+}
+
+#[inline(always)]
+fn residual_parts(direction: &Vector3<f64>, v: &Vector3<f64>) -> Option<ResidualParts> {
     let len = v.norm();
     if !(len > MIN_POINT_DISTANCE_M && len.is_finite()) {
         return None;
@@ -460,6 +466,35 @@ fn residual(
     } else {
         sin.atan2(c)
     };
+    Some(ResidualParts {
+        len,
+        u,
+        tangent,
+        s,
+        sin,
+        c,
+        angle,
+    })
+}
+
+/// The residual of one observation and its Jacobian with respect to `vᵢ` (rig frame), or
+/// `None` when `vᵢ` is too short (the point sits on the ray origin) or not finite.
+///
+/// Returns `(r, ∂r/∂v, θ)` with `r = θ·ŝ`, the log map of `u` at `d` in the tangent basis.
+#[inline]
+fn residual(
+    direction: &Vector3<f64>,
+    v: &Vector3<f64>,
+) -> Option<(Vector2<f64>, Matrix2x3<f64>, f64)> {
+    let ResidualParts {
+        len,
+        u,
+        tangent,
+        s,
+        sin,
+        c,
+        angle,
+    } = residual_parts(direction, v)?;
     let (r, dr_du) = if angle <= SMALL_ANGLE_RAD {
         // r = φ(c)·s with φ = θ/sin θ: ∂r/∂u = φ·T + φ'(c)·s·dᵀ,
         // φ'(c) = −(sin θ − θ cos θ)/sin³ θ = −(1/3 + 2θ²/15 + …).
@@ -498,22 +533,7 @@ fn residual(
 /// Jacobian: for [`linearity_ratio`], which evaluates three poses per observation.
 #[inline]
 fn residual_value(direction: &Vector3<f64>, v: &Vector3<f64>) -> Option<Vector2<f64>> {
-    let len = v.norm();
-    if !(len > MIN_POINT_DISTANCE_M && len.is_finite()) {
-        return None;
-    }
-    let u = v / len;
-    let (t1, t2) = tangent_basis(direction);
-    let tangent = Matrix2x3::from_rows(&[t1.transpose(), t2.transpose()]);
-    let s = tangent * u;
-    let sin = s.norm();
-    let c = direction.dot(&u);
-    let angle = if c > 0.0 && sin < ASIN_SERIES_LIMIT {
-        let s2 = sin * sin;
-        sin * (1.0 + s2 * (1.0 / 6.0 + s2 * (3.0 / 40.0 + s2 * (5.0 / 112.0))))
-    } else {
-        sin.atan2(c)
-    };
+    let ResidualParts { s, sin, angle, .. } = residual_parts(direction, v)?;
     Some(if angle <= SMALL_ANGLE_RAD {
         let phi = if angle < SERIES_ANGLE_RAD {
             1.0 + angle * angle / 6.0
