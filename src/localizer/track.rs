@@ -2,6 +2,7 @@
 //! nearest to it from a pose guess, then refine the pose on the associations.
 
 use crate::geometry::{Pose, Ray};
+use crate::mapping::{CONE_ABSOLUTE_MARGIN, CONE_MIN_COS, CONE_RELATIVE_MARGIN, max_or_nan};
 use crate::solvers::refine_pose::refine_pose_with_sigmas;
 use crate::solvers::{RefineOptions, RobustLoss};
 use nalgebra::{Matrix6, Vector3};
@@ -82,28 +83,21 @@ struct ObsSpread {
 impl ObsSpread {
     fn of(observations: &[ObsRay]) -> Self {
         // NaN terms propagate (and then disable the cone).
-        let max = |a: f64, b: f64| if b > a || b.is_nan() { b } else { a };
         observations.iter().fold(
             Self {
                 sigma2: 0.0,
                 offset: 0.0,
             },
             |w, o| Self {
-                sigma2: max(w.sigma2, o.sigma_rad * o.sigma_rad),
-                offset: max(w.offset, o.ray.origin.norm()),
+                sigma2: max_or_nan(w.sigma2, o.sigma_rad * o.sigma_rad),
+                offset: max_or_nan(w.offset, o.ray.origin.norm()),
             },
         )
     }
 }
 
-/// Relative widening of the [`gate_cone`], far above rounding errors.
-const CONE_RELATIVE_MARGIN: f64 = 1e-3;
-/// Absolute widening of the [`gate_cone`] (metres of radius, and cosine).
-const CONE_ABSOLUTE_MARGIN: f64 = 1e-9;
 /// Observation directions may be this far from unit length (see `observation_rays`).
 const DIRECTION_NORM_TOLERANCE: f64 = 1e-5;
-/// Below this cosine of its half-angle the cone does not help: every direction passes.
-const CONE_MIN_COS: f64 = 0.05;
 
 /// A cone `(axis, min_cos)` of rig-frame directions outside which no observation can pass
 /// the gate of [`associate`] for a candidate at `in_rig`: a conservative pre-filter
@@ -113,19 +107,13 @@ const CONE_MIN_COS: f64 = 0.05;
 /// of the observation's ray in front of its camera `x` (`v` the candidate from `x`, `|v| ≤
 /// |c| + |x|`); the parallel ray from the rig origin then passes within `ρ = δ + |x|`, so its
 /// direction is within `asin(ρ / |c|)` of the candidate's.
-fn gate_cone(
-    in_rig: &Vector3<f64>,
-    lateral2: f64,
-    rot2: f64,
-    gate2: f64,
-    w: &ObsSpread,
-) -> (Vector3<f64>, f64) {
+fn gate_cone(in_rig: &Vector3<f64>, gate: &GateTerms, w: &ObsSpread) -> (Vector3<f64>, f64) {
     let every = (Vector3::zeros(), f64::NEG_INFINITY);
     let d = in_rig.norm();
     let range = d + w.offset;
-    let var = range * range * (w.sigma2 + rot2) + lateral2;
+    let var = range * range * (w.sigma2 + gate.rot2) + gate.lateral2;
     // |u × v| ≤ δ with |u| ≥ 1 − tolerance.
-    let delta = (gate2 * var).sqrt() / (1.0 - DIRECTION_NORM_TOLERANCE);
+    let delta = (gate.gate2 * var).sqrt() / (1.0 - DIRECTION_NORM_TOLERANCE);
     let rho = (delta + w.offset) * (1.0 + CONE_RELATIVE_MARGIN) + CONE_ABSOLUTE_MARGIN;
     let k = rho / d;
     if k.is_nan() || k >= 1.0 {
@@ -139,6 +127,31 @@ fn gate_cone(
     (in_rig / d, min_cos)
 }
 
+/// The squared terms of the association gate `z ≤ gate_sigmas` for one candidate under a
+/// pose guess, shared by [`gate_cone`] and [`pair_z`].
+#[derive(Clone, Copy, Debug)]
+struct GateTerms {
+    /// The gate, in σ.
+    gate_sigmas: f64,
+    /// Its square.
+    gate2: f64,
+    /// The guess's rotation variance (rad²).
+    rot2: f64,
+    /// The guess's position variance plus the candidate's (m²).
+    lateral2: f64,
+}
+
+impl GateTerms {
+    fn new(guess: &GuessUncertainty, c: &Candidate, gate_sigmas: f64) -> Self {
+        Self {
+            gate_sigmas,
+            gate2: gate_sigmas * gate_sigmas,
+            rot2: guess.rotation_rad * guess.rotation_rad,
+            lateral2: guess.position_m * guess.position_m + c.sigma_m * c.sigma_m,
+        }
+    }
+}
+
 /// The normalised residual `z` of observation `o` against candidate `c` (at `in_rig` in the
 /// rig frame of the pose guess), or `None` when the pair fails the gate `z ≤ gate_sigmas`
 /// (or the classes differ, or the candidate is not in front of the camera).
@@ -148,7 +161,7 @@ fn pair_z(
     c: &Candidate,
     in_rig: &Vector3<f64>,
     guess: &GuessUncertainty,
-    gate_sigmas: f64,
+    gate: &GateTerms,
 ) -> Option<f64> {
     if let (Some(a), Some(b)) = (o.class, c.class)
         && a != b
@@ -158,9 +171,12 @@ fn pair_z(
     // z² = sin²/σ² with sin² = |u × v|²/|v|² and σ² from `predicted_sigma`, rearranged so
     // that the gate needs neither a square root nor a division:
     // |u × v|² ≤ g² (|v|² (σ_obs² + σ_rot²) + σ_pos² + σ_c²).
-    let gate2 = gate_sigmas * gate_sigmas;
-    let rot2 = guess.rotation_rad * guess.rotation_rad;
-    let lateral2 = guess.position_m * guess.position_m + c.sigma_m * c.sigma_m;
+    let GateTerms {
+        gate_sigmas,
+        gate2,
+        rot2,
+        lateral2,
+    } = *gate;
     let v = in_rig - o.ray.origin;
     let range2 = v.norm_squared();
     if !range2.is_finite() || range2 <= f64::EPSILON * f64::EPSILON {
@@ -193,20 +209,16 @@ fn associate(
 ) -> Vec<Option<usize>> {
     pairs.clear();
     let rig_from_world = pose.inverse();
-    // The terms of the gate of `pair_z`, for its cone.
-    let gate2 = gate_sigmas * gate_sigmas;
-    let rot2 = guess.rotation_rad * guess.rotation_rad;
-    let pos2 = guess.position_m * guess.position_m;
     let worst = ObsSpread::of(observations);
     for (ci, c) in candidates.iter().enumerate() {
         let in_rig = rig_from_world * nalgebra::Point3::from(c.position);
-        let lateral2 = pos2 + c.sigma_m * c.sigma_m;
-        let (axis, min_cos) = gate_cone(&in_rig.coords, lateral2, rot2, gate2, &worst);
+        let gate = GateTerms::new(guess, c, gate_sigmas);
+        let (axis, min_cos) = gate_cone(&in_rig.coords, &gate, &worst);
         for (oi, o) in observations.iter().enumerate() {
             if o.ray.direction.dot(&axis) < min_cos {
                 continue;
             }
-            if let Some(z) = pair_z(o, c, &in_rig.coords, guess, gate_sigmas) {
+            if let Some(z) = pair_z(o, c, &in_rig.coords, guess, &gate) {
                 pairs.push((z, oi, ci));
             }
         }
@@ -376,18 +388,11 @@ mod tests {
                 })
                 .collect();
             let worst = ObsSpread::of(&observations);
-            let lateral2 = guess.position_m.powi(2) + c.sigma_m.powi(2);
-            let gate2 = ASSOCIATION_GATE_SIGMAS * ASSOCIATION_GATE_SIGMAS;
-            let (axis, min_cos) = gate_cone(
-                &c.position,
-                lateral2,
-                guess.rotation_rad.powi(2),
-                gate2,
-                &worst,
-            );
+            let gate = GateTerms::new(&guess, &c, ASSOCIATION_GATE_SIGMAS);
+            let (axis, min_cos) = gate_cone(&c.position, &gate, &worst);
             for o in &observations {
                 let admitted = o.ray.direction.dot(&axis) >= min_cos;
-                if pair_z(o, &c, &c.position, &guess, ASSOCIATION_GATE_SIGMAS).is_some() {
+                if pair_z(o, &c, &c.position, &guess, &gate).is_some() {
                     passed += 1;
                     assert!(admitted, "passing pair rejected: {o:?} {c:?} {guess:?}");
                 } else {

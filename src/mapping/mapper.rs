@@ -379,6 +379,8 @@ impl LandmarkMapper {
                         &frame_spread,
                         &opts,
                     );
+                    // The new ray must pass near every recent ray of the track.
+                    let start = track.rays.len().saturating_sub(MAX_PAIRWISE_RAYS);
                     for range in by_azimuth.window(&cone) {
                         for &k in &by_azimuth.order[range] {
                             let (o, ray) = (&frame.observations[k], &rays[k]);
@@ -386,8 +388,6 @@ impl LandmarkMapper {
                             {
                                 continue;
                             }
-                            // The new ray must pass near every recent ray of the track.
-                            let start = track.rays.len().saturating_sub(MAX_PAIRWISE_RAYS);
                             // Most recent first; stop at the first ray that fails the gate.
                             let mut worst = Some(0.0f64);
                             for (r, rs) in track.rays[start..]
@@ -646,13 +646,11 @@ impl FrameSpread {
             offset: 0.0,
             sigma_rad: 0.0,
         };
-        // A NaN term makes the bound NaN, and a NaN bound disables the pre-filters.
-        let max = |a: f64, b: f64| if b > a || b.is_nan() { b } else { a };
         for (r, s) in rays.iter().zip(spreads) {
-            w.pos = max(w.pos, s.pos);
-            w.rot = max(w.rot, s.rot);
-            w.offset = max(w.offset, s.offset);
-            w.sigma_rad = max(w.sigma_rad, r.sigma_rad);
+            w.pos = max_or_nan(w.pos, s.pos);
+            w.rot = max_or_nan(w.rot, s.rot);
+            w.offset = max_or_nan(w.offset, s.offset);
+            w.sigma_rad = max_or_nan(w.sigma_rad, r.sigma_rad);
         }
         w
     }
@@ -662,13 +660,20 @@ impl FrameSpread {
     }
 }
 
-/// Relative widening of the pre-filter cones, far above rounding errors: the cones only
-/// skip pairs whose gate value is well beyond the gate.
-const CONE_RELATIVE_MARGIN: f64 = 1e-3;
+/// Relative widening of the pre-filter cones (here and in the localizer's tracker), far
+/// above rounding errors: the cones only skip pairs whose gate value is well beyond the gate.
+pub(crate) const CONE_RELATIVE_MARGIN: f64 = 1e-3;
 /// Absolute widening of the pre-filter cones (metres of radius, and cosine).
-const CONE_ABSOLUTE_MARGIN: f64 = 1e-9;
+pub(crate) const CONE_ABSOLUTE_MARGIN: f64 = 1e-9;
 /// Below this cosine of its half-angle a cone is not convex enough to help: no filter.
-const CONE_MIN_COS: f64 = 0.05;
+pub(crate) const CONE_MIN_COS: f64 = 0.05;
+
+/// The larger of `a` and `b`, NaN when `b` is NaN: the largest noise term of a frame, so
+/// that a NaN term makes the cone's bound NaN, which disables the cone.
+#[inline]
+pub(crate) fn max_or_nan(a: f64, b: f64) -> f64 {
+    if b > a || b.is_nan() { b } else { a }
+}
 
 /// A cone of directions from the rig origin outside which a gate cannot pass: a conservative
 /// pre-filter that skips (track, observation) pairs without changing the gates' results.

@@ -47,6 +47,7 @@ pub use calibrate::{
     calibrate_gps_offset,
 };
 pub use frame::{MappingFrame, RigObservation};
+pub(crate) use mapper::{CONE_ABSOLUTE_MARGIN, CONE_MIN_COS, CONE_RELATIVE_MARGIN, max_or_nan};
 pub use mapper::{LandmarkMapper, MAX_PAIRWISE_RAYS, MapperOptions, NearbySurrogate};
 pub(crate) use refine::ray_chi2;
 pub use refine::{MapRay, ray_residual_covariance, refine_landmark};

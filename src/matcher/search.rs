@@ -53,8 +53,8 @@ struct Hypothesis {
     pose: Pose,
     inliers: usize,
     cost: f64,
-    confirmations: u32,
-    /// The detection triples that confirmed the pose, pairwise disjoint.
+    /// The detection triples that confirmed the pose, pairwise disjoint (their number is the
+    /// pose's confirmations).
     confirming: Vec<[usize; 3]>,
 }
 
@@ -460,7 +460,6 @@ impl Search<'_> {
                 .iter()
                 .all(|t| t.iter().all(|d| !triple.contains(d)))
             {
-                h.confirmations += 1;
                 h.confirming.push(triple);
             }
             if inliers > h.inliers || (inliers == h.inliers && cost < h.cost) {
@@ -480,7 +479,6 @@ impl Search<'_> {
                 pose,
                 inliers,
                 cost,
-                confirmations: 1,
                 confirming: vec![triple],
             });
         }
@@ -946,7 +944,7 @@ pub(super) fn run(
                 .min_inliers
                 .max((STOP_MIN_INLIER_FRACTION * n_usable as f64).ceil() as usize);
             if let Some(top) = search.kept.first()
-                && top.confirmations >= STOP_CONFIRMATIONS
+                && top.confirming.len() >= STOP_CONFIRMATIONS as usize
                 && top.inliers >= enough
                 && top.inliers > stop_checked_inliers
             {
