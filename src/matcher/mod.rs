@@ -13,20 +13,30 @@
 //! 2. **Pair pruning.** The angle between two bearings does not depend on the rotation. Seen
 //!    from any point `x` with `|x − c| ≤ h`, the direction to a landmark `L` at range
 //!    `ρ = |L − c| > h` turns by at most `δ = asin(h / ρ)` from its direction seen from `c`
-//!    (the cone from `L` tangent to the ball); for `ρ ≤ h`, `δ = π`. The angle between
-//!    landmarks `i` and `j` seen from `x` is therefore within `δᵢ + δⱼ` of the angle `φᵢⱼ`
-//!    seen from `c`. With bearing noise bounded by `k σ` per bearing (`k` =
-//!    [`MatchOptions::inlier_threshold_sigmas`]) and a survey error `σ_m` adding `k σ_m / ρ`,
-//!    the detection pair `(a, b)` can be the landmark pair `(i, j)` only if
-//!    `|θ_ab − φ_ij| ≤ δᵢ + δⱼ + 2kσ + k(σ_m,ᵢ/ρᵢ + σ_m,ⱼ/ρⱼ)`. Classes must agree when both
-//!    are labelled. For each detection pair one bitset per landmark `i` holds the `j` that
-//!    pass (the pair table); landmark triples for a detection triple `(a, b, c)` are then
-//!    `i`, `j ∈ T_ab[i]`, `k ∈ T_ac[i] ∩ T_bc[j]` — one AND of bitsets per pair.
+//!    (the cone from `L` tangent to the ball); for `ρ ≤ h`, `δ = π`. The angle `φᵢⱼ(x)`
+//!    between landmarks `i` and `j` therefore moves by at most `δᵢ + δⱼ` from `φᵢⱼ(c)`; and
+//!    since its gradient has the norm `|Lᵢ − Lⱼ| / (ρᵢ(x) ρⱼ(x))`, also by at most
+//!    `h |Lᵢ − Lⱼ| / ((ρᵢ − h)(ρⱼ − h))`, far less for two landmarks in similar directions
+//!    (a row of lamps seen along a street). The smaller bound `wᵢⱼ` is used. With bearing
+//!    noise bounded by `k σ` per bearing (`k` = [`MatchOptions::inlier_threshold_sigmas`])
+//!    and a survey error `σ_m` adding `k σ_m / ρ`, the detection pair `(a, b)` can be the
+//!    landmark pair `(i, j)` only if `|θ_ab − φᵢⱼ(c)| ≤ wᵢⱼ + 2kσ + k(σ_m,ᵢ/ρᵢ + σ_m,ⱼ/ρⱼ)`.
+//!    Classes must agree when both are labelled. With a known vertical
+//!    ([`MatchOptions::up_in_rig`]) the pair also has a side: whether `b` is left or right of
+//!    `a` seen from above (the sign of `det[up, b_a, b_b]`, kept only when the tilt
+//!    tolerance and the noise cannot flip it) must match the side of `j` from `i`, which is
+//!    the same over the whole cell when the vertical plane through the two landmarks misses
+//!    it. For each detection pair one bitset per landmark `i` holds the `j` that pass (the
+//!    pair table); landmark triples for a detection triple `(a, b, c)` are then `i`,
+//!    `j ∈ T_ab[i]`, `k ∈ T_ac[i] ∩ T_bc[j]` — one AND of bitsets per pair.
 //! 3. **Orientation.** `det[b_a, b_b, b_c]` is invariant under rotation; its sign must match
 //!    `det[Lᵢ − x, Lⱼ − x, L_k − x]`, which is constant over the cell when the cell's ball
 //!    does not meet the plane of the three landmarks.
-//! 4. **Hypotheses.** Each surviving triple → [`crate::solvers::p3p`](fn@crate::solvers::p3p);
-//!    solutions outside the cell (plus a noise margin) are dropped; the others are scored:
+//! 4. **Hypotheses.** Each surviving triple → [`crate::solvers::p3p`](fn@crate::solvers::p3p)
+//!    (once per detection triple: neighbouring cells share triples); solutions outside the
+//!    cell (plus a noise margin) or, with a known vertical, too tilted are dropped. A
+//!    solution is then verified: under it, [`MatchOptions::min_extensions`] other core
+//!    detections must each lie near some candidate landmark. The survivors are scored:
 //!    every detection takes the candidate landmark nearest in direction (a brute-force search
 //!    over the cell's candidates), within [`HYPOTHESIS_THRESHOLD_FACTOR`] × the inlier
 //!    threshold, one-to-one (the smaller residual wins a landmark). Score = inlier count
@@ -129,7 +139,7 @@ pub const DEFAULT_MAX_HYPOTHESES: usize = 2_000_000;
 /// accurate than the bearings; radians, 2°).
 pub const UP_CHECK_MARGIN_RAD: f64 = 0.034_906_585_039_886_59;
 
-/// Default number of consistent fourth detections required before a triple is solved.
+/// Default number of other detections that must verify a P3P pose before it is scored.
 pub const DEFAULT_MIN_EXTENSIONS: usize = 1;
 
 /// The search stops early only when the best has at least this fraction of the usable
@@ -285,8 +295,9 @@ pub struct MatchOptions {
     /// detection's elevation is a rotation invariant: single assignments are gated by
     /// elevation and P3P poses whose up disagrees are dropped.
     pub up_in_rig: Option<(Vector3<f64>, f64)>,
-    /// A landmark triple is solved (P3P) only when this many other core detections can each
-    /// be some landmark consistent with all three (the quadruple test). 0 disables it.
+    /// A P3P pose is scored only when, under it, this many other core detections each lie
+    /// within the hypothesis threshold of a candidate landmark of the cell (a cheap check
+    /// that removes most wrong poses before scoring). 0 disables it.
     pub min_extensions: usize,
     /// Most rounds of detection triples (at least 1): round `r` draws from a core of
     /// `max_core_detections · CORE_GROWTH^r` detections. 1 keeps the first core only (fast,

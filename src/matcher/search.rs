@@ -8,7 +8,7 @@ use super::{
     MatchResult, MatchStatus, REFINE_PASSES, STOP_CONFIRMATIONS, STOP_MIN_INLIER_FRACTION,
     SearchArea, UP_CHECK_MARGIN_RAD,
 };
-use crate::geometry::{Pose, PoseSolutions, Ray, angle_between, rotation_angle, try_unit};
+use crate::geometry::{Pose, Ray, angle_between, rotation_angle, try_unit};
 use crate::solvers::p3p;
 use crate::solvers::refine_pose::{RefineOptions, refine_pose_with_sigmas};
 use nalgebra::{Matrix6, Vector3};
@@ -16,8 +16,20 @@ use rand::{RngExt, SeedableRng};
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
-/// A multiply-rotate hasher for the small integer keys of the P3P cache (landmark index
-/// triples): the standard SipHash cost as much as a third of a P3P solve.
+/// A landmark index triple, the key of the per-detection-triple P3P cache.
+#[derive(Clone, Copy, PartialEq, Eq)]
+struct TripleKey([usize; 3]);
+
+impl std::hash::Hash for TripleKey {
+    fn hash<H: Hasher>(&self, state: &mut H) {
+        // One word per key: collisions cost a comparison, never a wrong answer.
+        let [i, j, k] = self.0.map(|x| x as u64);
+        state.write_u64(i ^ j.rotate_left(21) ^ k.rotate_left(42));
+    }
+}
+
+/// A multiply hasher for [`TripleKey`] (one `write_u64` per key): the standard SipHash
+/// cost as much as a third of a P3P solve.
 #[derive(Default)]
 struct TripleHasher(u64);
 
@@ -30,9 +42,6 @@ impl Hasher for TripleHasher {
             self.write_u64(u64::from(b));
         }
     }
-    fn write_usize(&mut self, i: usize) {
-        self.write_u64(i as u64);
-    }
     fn write_u64(&mut self, i: u64) {
         // The constant of FxHash (rustc's hasher).
         self.0 = (self.0.rotate_left(5) ^ i).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
@@ -43,8 +52,37 @@ impl Hasher for TripleHasher {
 struct Candidate {
     index: usize,
     direction: Vector3<f64>,
-    /// Half-width of the direction's wander over the cell plus its survey term, radians.
-    slack: f64,
+    /// Distance from the cell centre, metres.
+    range: f64,
+    /// Half-width of the direction's wander over the cell, radians (π when the landmark is
+    /// within the cell's ball).
+    wander: f64,
+    /// The survey term `k σ_m / max(range, radius)`, radians.
+    survey: f64,
+}
+
+/// The largest change of the angle between the directions to two landmarks `i, j` when the
+/// viewpoint moves from the cell centre to any point of the cell's ball (radius `radius`),
+/// radians.
+///
+/// Two bounds, the smaller is used:
+/// - each direction turns by at most its `wander` (`asin(radius / range)`), so the angle
+///   changes by at most `wander_i + wander_j`;
+/// - the angle's gradient has the norm `|∇φᵢⱼ(x)| = |Lᵢ − Lⱼ| / (ρᵢ(x) ρⱼ(x))` (from
+///   `∇φ = [(uⱼ − cos φ uᵢ)/ρᵢ + (uᵢ − cos φ uⱼ)/ρⱼ] / sin φ` and the law of cosines), and
+///   every point of the segment from the centre to a point of the ball is in the ball, where
+///   `ρ ≥ range − radius`; so the change is at most
+///   `radius · |Lᵢ − Lⱼ| / ((ρᵢ − radius)(ρⱼ − radius))`.
+///
+/// The second is much tighter for two landmarks in similar directions (a row of lamps
+/// along a street, seen end-on): their separation is far less than `ρᵢ + ρⱼ`.
+fn pair_angle_wander(ci: &Candidate, cj: &Candidate, separation: f64, radius: f64) -> f64 {
+    let sum = ci.wander + cj.wander;
+    if ci.range > radius && cj.range > radius {
+        sum.min(radius * separation / ((ci.range - radius) * (cj.range - radius)))
+    } else {
+        sum
+    }
 }
 
 /// One scored hypothesis.
@@ -80,6 +118,14 @@ struct CellData {
     cands: Vec<Candidate>,
     /// Pairwise candidate angles seen from the centre (row-major `m × m`).
     angles: Vec<f64>,
+    /// How far each pairwise angle may be from `angles` over the cell, plus the survey terms
+    /// (row-major `m × m`, radians): [`pair_angle_wander`] `+ surveyᵢ + surveyⱼ`.
+    bounds: Vec<f64>,
+    /// With a known vertical: per candidate pair `(i, j)` (row-major `m × m`) the sign of
+    /// `det[z, Lᵢ − x, Lⱼ − x]` (is `j` left of `i` seen from above), the same for every
+    /// point `x` of the cell, or 0 when the vertical plane through the two landmarks meets
+    /// the cell. Empty without a known vertical.
+    signs: Vec<i8>,
     /// Database indices of the candidates.
     indices: Vec<usize>,
     /// 64-bit words per candidate bitset.
@@ -99,13 +145,6 @@ struct CellData {
 const NO_TABLE: u32 = u32::MAX;
 
 impl CellData {
-    /// Row `i` of the (built) table of the ordered detection pair `key`.
-    fn row(&self, key: usize, i: usize) -> &[u64] {
-        let size = self.cands.len() * self.words;
-        let start = self.slots[key] as usize * size + i * self.words;
-        &self.store[start..start + self.words]
-    }
-
     /// The whole (built) table of the ordered detection pair `key`.
     fn table(&self, key: usize) -> &[u64] {
         let size = self.cands.len() * self.words;
@@ -127,23 +166,6 @@ fn for_each_bit(bits: &[u64], mut f: impl FnMut(usize)) {
             rest &= rest - 1;
         }
     }
-}
-
-/// Whether `x & y & z` (bitsets of equal length) has a bit outside `exclude`.
-fn meet_outside(x: &[u64], y: &[u64], z: &[u64], exclude: [usize; 3]) -> bool {
-    x.iter()
-        .zip(y)
-        .zip(z)
-        .enumerate()
-        .any(|(w, ((&p, &q), &r))| {
-            let mut v = p & q & r;
-            for e in exclude {
-                if e / 64 == w {
-                    v &= !(1u64 << (e % 64));
-                }
-            }
-            v != 0
-        })
 }
 
 fn validate(detections: &[Detection], options: &MatchOptions) -> Result<(), MatchError> {
@@ -250,6 +272,13 @@ struct Search<'a> {
     hypotheses: usize,
     scratch_dirs: Vec<(Vector3<f64>, usize, f64)>,
     scratch_best: Vec<(usize, f64)>,
+    scratch_offsets: Vec<(Vector3<f64>, f64)>,
+    /// The rig's up direction (unit, rig frame) and its tolerance (radians), when known.
+    up: Option<(Vector3<f64>, f64)>,
+    /// The search area widened by the position margin of a P3P pose: a fix must lie in it.
+    area_min: Vector3<f64>,
+    /// See `area_min`.
+    area_max: Vector3<f64>,
 }
 
 impl Search<'_> {
@@ -287,10 +316,33 @@ impl Search<'_> {
                 Some(Candidate {
                     index,
                     direction,
-                    slack: wander + k * l.sigma_m / range.max(radius),
+                    range,
+                    wander,
+                    survey: k * l.sigma_m / range.max(radius),
                 })
             })
             .collect()
+    }
+
+    /// Whether a pose lies in the search area (widened by the position margin). The area is
+    /// the prior: a hypothesis outside it, e.g. one that refinement moved away, is not a fix.
+    fn within_area(&self, pose: &Pose) -> bool {
+        let t = pose.translation.vector;
+        (0..3).all(|a| t[a] >= self.area_min[a] && t[a] <= self.area_max[a])
+    }
+
+    /// With a known vertical: which side of detection `a` detection `b` is, seen from above
+    /// ([`side_of_bearings`]), or 0.
+    fn side(&self, a: usize, b: usize) -> i8 {
+        self.up.map_or(0, |(up, tol)| {
+            side_of_bearings(
+                &up,
+                tol,
+                self.noise,
+                &self.directions[a],
+                &self.directions[b],
+            )
+        })
     }
 
     /// Builds the pair table of the ordered detection pair `(a, b)` in a cell (once).
@@ -304,62 +356,80 @@ impl Search<'_> {
         let words = cell.words;
         let theta = angle_between(&self.directions[a], &self.directions[b]);
         let tol = 2.0 * self.noise;
+        let side = self.side(a, b);
         let start = cell.store.len();
         cell.slots[key] = (start / (m * words)) as u32;
         cell.store.resize(start + m * words, 0);
+
         let table = &mut cell.store[start..];
         let allowed_a = &cell.allowed[a * words..(a + 1) * words];
         let allowed_b = &cell.allowed[b * words..(b + 1) * words];
         for_each_bit(allowed_a, |i| {
             let row = &mut table[i * words..(i + 1) * words];
-            let si = cell.cands[i].slack + tol;
             let angles = &cell.angles[i * m..(i + 1) * m];
+            let bounds = &cell.bounds[i * m..(i + 1) * m];
+            let signs = if side != 0 {
+                &cell.signs[i * m..(i + 1) * m]
+            } else {
+                &[]
+            };
             for_each_bit(allowed_b, |j| {
-                if i != j && (theta - angles[j]).abs() <= si + cell.cands[j].slack {
+                if i != j
+                    && (theta - angles[j]).abs() <= tol + bounds[j]
+                    && signs.get(j).is_none_or(|&s| s * side >= 0)
+                {
                     bit_set(row, j);
                 }
             });
         });
     }
 
-    /// Whether detection `d`, under `pose`, is within the hypothesis threshold of one of the
-    /// candidates in `x & y & z` other than `exclude`.
-    fn sees_one_of(
-        &self,
+    /// Whether at least `min_extensions` of the detections `extensions` each lie, under
+    /// `pose`, within the hypothesis threshold of a candidate of the cell other than the
+    /// hypothesis's own three (`exclude`, cell-local indices).
+    fn verify(
+        &mut self,
         pose: &Pose,
-        d: usize,
-        rows: &[&[u64]; 3],
+        extensions: &[usize],
         exclude: [usize; 3],
-        cands: &[Candidate],
+        cell: &CellData,
     ) -> bool {
         let threshold = HYPOTHESIS_THRESHOLD_FACTOR * self.noise;
         let cos_threshold = threshold.min(std::f64::consts::PI).cos();
-        let bearing = self.directions[d];
-        for (w, ((&p, &q), &r)) in rows[0].iter().zip(rows[1]).zip(rows[2]).enumerate() {
-            let mut bits = p & q & r;
-            while bits != 0 {
-                let m = w * 64 + bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                if exclude.contains(&m) {
-                    continue;
-                }
-                let l = &self.db.landmarks()[cands[m].index];
-                let v =
-                    pose.inverse_transform_vector(&(l.position_in_world - pose.translation.vector));
-                let r = v.norm();
+        let survey_factor = HYPOTHESIS_THRESHOLD_FACTOR * self.options.inlier_threshold_sigmas;
+        let t = pose.translation.vector;
+        // Each candidate's offset from the rig and `cos(threshold) · range`: a detection `d`
+        // sees it when `offset · (R b_d) ≥ cos(threshold) · range`.
+        self.scratch_offsets.clear();
+        for (m, cand) in cell.cands.iter().enumerate() {
+            if exclude.contains(&m) {
+                continue;
+            }
+            let l = &self.db.landmarks()[cand.index];
+            let v = l.position_in_world - t;
+            let r = v.norm();
+            if r > 0.0 {
                 // Survey error widens the threshold for near landmarks.
-                let cos_t = if l.sigma_m > 0.0 && r > 0.0 {
-                    (threshold
-                        + HYPOTHESIS_THRESHOLD_FACTOR
-                            * self.options.inlier_threshold_sigmas
-                            * l.sigma_m
-                            / r)
+                let cos_t = if l.sigma_m > 0.0 {
+                    (threshold + survey_factor * l.sigma_m / r)
                         .min(std::f64::consts::PI)
                         .cos()
                 } else {
                     cos_threshold
                 };
-                if r > 0.0 && v.dot(&bearing) >= cos_t * r {
+                self.scratch_offsets.push((v, cos_t * r));
+            }
+        }
+        let mut verified = 0;
+        for &d in extensions {
+            let w = pose.rotation * self.directions[d];
+            if self
+                .scratch_offsets
+                .iter()
+                .any(|(v, limit)| v.dot(&w) >= *limit)
+            {
+                verified += 1;
+                if verified >= self.options.min_extensions {
                     return true;
                 }
             }
@@ -564,6 +634,66 @@ fn same_pose(a: &Pose, b: &Pose) -> bool {
         && rotation_angle(&(a.rotation.inverse() * b.rotation)) < DISTINCT_ROTATION_RAD
 }
 
+/// Whether bearing `b` is left (+1) or right (−1) of bearing `a` seen from above, i.e. the
+/// sign of `det[up, a, b]`, or 0 when a tilt of the true up by up to `tol` from `up` or a
+/// move of each bearing by up to `noise` (radians) could flip it. Tilting `up` by at most
+/// `tol` changes the determinant by at most `2 sin(tol/2) |a × b|`, and moving each bearing
+/// by at most `noise` (a chord of at most `noise`) changes it, and the norm of the cross
+/// product, by at most `2 noise + noise²`.
+fn side_of_bearings(
+    up: &Vector3<f64>,
+    tol: f64,
+    noise: f64,
+    a: &Vector3<f64>,
+    b: &Vector3<f64>,
+) -> i8 {
+    let cross = a.cross(b);
+    let det = up.dot(&cross);
+    let wobble = 2.0 * noise + noise * noise;
+    let margin =
+        2.0 * (0.5 * tol.min(std::f64::consts::PI)).sin() * (cross.norm() + wobble) + wobble;
+    if det > margin {
+        1
+    } else if det < -margin {
+        -1
+    } else {
+        0
+    }
+}
+
+/// Which side of landmark `i` landmark `j` is, seen from above, from every point `x` of the
+/// vertical cylinder of horizontal radius `half_horizontal` around `centre`: the sign of
+/// `D(x) = det[z, Lᵢ − x, Lⱼ − x] = ((Lᵢ − x) × (Lⱼ − Lᵢ))_z` (+1: `j` is to the left, i.e.
+/// anticlockwise), or 0 when it is not the same everywhere.
+///
+/// `D` is linear in `x` (zero on the vertical plane through both landmarks), so over the
+/// cylinder it stays within `|Lⱼ − Lᵢ|_xy · half_horizontal` of `D(centre)`; moving the
+/// landmarks by up to their survey bounds `eᵢ, eⱼ` (metres) changes it by at most
+/// `eᵢ |Lⱼ − x|_xy + eⱼ |Lᵢ − x|_xy + eᵢ eⱼ`. The sign is returned when `|D(centre)|`
+/// exceeds both.
+fn side_from_above(
+    (li, ei): (&Vector3<f64>, f64),
+    (lj, ej): (&Vector3<f64>, f64),
+    centre: &Vector3<f64>,
+    half_horizontal: f64,
+) -> i8 {
+    let from_i = (li - centre).xy();
+    let from_j = (lj - centre).xy();
+    let baseline = (lj - li).xy();
+    let side = from_i.perp(&baseline);
+    let reach = baseline.norm() * half_horizontal
+        + ei * (from_j.norm() + half_horizontal)
+        + ej * (from_i.norm() + half_horizontal)
+        + ei * ej;
+    if side > reach {
+        1
+    } else if side < -reach {
+        -1
+    } else {
+        0
+    }
+}
+
 /// The range of elevations (radians) of the offset `v = L − c` seen from every point of the
 /// cylinder of horizontal radius `half_horizontal` and half-height `half_vertical` around the
 /// cell centre `c` (which contains the cell). Elevation `atan2(dz, d)` is monotone in the
@@ -627,20 +757,6 @@ pub(super) fn run(
             }
         }
     }
-    let mut search = Search {
-        db,
-        detections,
-        directions,
-        options,
-        noise: options.inlier_threshold_sigmas * options.sigma_rad,
-        kept: Vec::new(),
-        hypotheses: 0,
-        scratch_dirs: Vec::new(),
-        scratch_best: Vec::new(),
-    };
-
-    // The cells with candidates, each with its pairwise landmark angles, nearest to the
-    // area's centre first.
     let up = match options.up_in_rig {
         Some((u, tol)) => {
             let u = try_unit(&u).ok_or(MatchError::InvalidOption("up_in_rig"))?;
@@ -651,6 +767,28 @@ pub(super) fn run(
         }
         None => None,
     };
+    // How far a P3P pose from noisy bearings may be from the truth (the bearing noise bound
+    // at the visibility range, twice).
+    let position_margin =
+        options.visibility_range_m * 2.0 * options.inlier_threshold_sigmas * options.sigma_rad;
+    let mut search = Search {
+        db,
+        detections,
+        directions,
+        options,
+        noise: options.inlier_threshold_sigmas * options.sigma_rad,
+        kept: Vec::new(),
+        hypotheses: 0,
+        scratch_dirs: Vec::new(),
+        scratch_best: Vec::new(),
+        scratch_offsets: Vec::new(),
+        up,
+        area_min: area.min_in_world.add_scalar(-position_margin),
+        area_max: area.max_in_world.add_scalar(position_margin),
+    };
+
+    // The cells with candidates, each with its pairwise landmark angles, nearest to the
+    // area's centre first.
     let mut near = Vec::new();
     let mut cell_data: Vec<CellData> = Vec::new();
     let area_centre = area.center();
@@ -682,11 +820,46 @@ pub(super) fn run(
         }
         let m = cands.len();
         let mut angles = vec![0.0; m * m];
+        let mut bounds = vec![0.0; m * m];
         for i in 0..m {
+            let li = &db.landmarks()[cands[i].index].position_in_world;
             for j in i + 1..m {
-                let a = angle_between(&cands[i].direction, &cands[j].direction);
+                // `acos` of the dot product of unit vectors: its error near 0 and π (about
+                // 1e-8 rad) is far below the bearing noise, and it is several times cheaper
+                // than the `atan2` form of `angle_between` over the m² pairs of every cell.
+                let a = cands[i]
+                    .direction
+                    .dot(&cands[j].direction)
+                    .clamp(-1.0, 1.0)
+                    .acos();
                 angles[i * m + j] = a;
                 angles[j * m + i] = a;
+                let separation = (li - db.landmarks()[cands[j].index].position_in_world).norm();
+                let bound = pair_angle_wander(&cands[i], &cands[j], separation, radius)
+                    + cands[i].survey
+                    + cands[j].survey;
+                bounds[i * m + j] = bound;
+                bounds[j * m + i] = bound;
+            }
+        }
+        // Which side of each other landmark a landmark is, seen from above.
+        let mut signs = Vec::new();
+        if up.is_some() {
+            signs = vec![0i8; m * m];
+            let k = options.inlier_threshold_sigmas;
+            for i in 0..m {
+                let li = &db.landmarks()[cands[i].index];
+                for j in i + 1..m {
+                    let lj = &db.landmarks()[cands[j].index];
+                    let sign = side_from_above(
+                        (&li.position_in_world, k * li.sigma_m),
+                        (&lj.position_in_world, k * lj.sigma_m),
+                        centre,
+                        half_horizontal,
+                    );
+                    signs[i * m + j] = sign;
+                    signs[j * m + i] = -sign;
+                }
             }
         }
         let words = m.div_ceil(64);
@@ -725,6 +898,8 @@ pub(super) fn run(
             centre: *centre,
             cands,
             angles,
+            bounds,
+            signs,
             indices,
             words,
             allowed,
@@ -754,10 +929,27 @@ pub(super) fn run(
     // Every usable detection in farthest-point order; round `r` draws its triples from the
     // first `max_core_detections · CORE_GROWTH^r` of them.
     let order = core_detections(&search.directions, &usable, n_usable);
-    let position_margin = options.visibility_range_m * 2.0 * search.noise;
     let mut survivors: Vec<[usize; 3]> = Vec::new();
-    let mut solved: HashMap<[usize; 3], PoseSolutions, BuildHasherDefault<TripleHasher>> =
+    // Per landmark triple of the current detection triple: the range of `solved_poses` that
+    // holds its P3P poses inside the area (with the cells' reach) and upright enough.
+    let mut solved: HashMap<TripleKey, (usize, usize), BuildHasherDefault<TripleHasher>> =
         HashMap::default();
+    let mut solved_poses: Vec<Pose> = Vec::new();
+    let reach_min = area.min_in_world.add_scalar(-(radius + position_margin));
+    let reach_max = area.max_in_world.add_scalar(radius + position_margin);
+    // A pose is upright enough when its up is within `tol + UP_CHECK_MARGIN_RAD` of the
+    // world's: `z ≥ cos(tol + margin)` (no check beyond π).
+    let up_min_z = up.map(|(u, tol)| {
+        let limit = tol + UP_CHECK_MARGIN_RAD;
+        (
+            u,
+            if limit >= std::f64::consts::PI {
+                f64::NEG_INFINITY
+            } else {
+                limit.cos()
+            },
+        )
+    });
     // P3P solves (every hypothesis scored comes from one): the budget of the frame.
     let mut solves = 0usize;
     let mut previous = 0;
@@ -789,6 +981,7 @@ pub(super) fn run(
         triples.truncate(budget);
         for &[a, b, c] in &triples {
             solved.clear();
+            solved_poses.clear();
             let bearings = [
                 search.directions[a],
                 search.directions[b],
@@ -838,29 +1031,6 @@ pub(super) fn run(
                 if survivors.is_empty() {
                     continue;
                 }
-                // The quadruple test: other detections that can each be a fourth landmark
-                // consistent with all three pairs.
-                if options.min_extensions > 0 {
-                    for &l in &extensions {
-                        for p in [a, b, c] {
-                            search.ensure_table(cell, p, l);
-                        }
-                    }
-                    let cell_ref = &*cell;
-                    let row = |p: usize, l: usize, i: usize| cell_ref.row(p * n + l, i);
-                    survivors.retain(|&[i, j, k]| {
-                        let mut found = 0;
-                        for &l in &extensions {
-                            if meet_outside(row(a, l, i), row(b, l, j), row(c, l, k), [i, j, k]) {
-                                found += 1;
-                                if found >= options.min_extensions {
-                                    return true;
-                                }
-                            }
-                        }
-                        false
-                    });
-                }
                 let cell = &*cell;
                 for &[i, j, k] in &survivors {
                     let cands = &cell.cands;
@@ -885,41 +1055,31 @@ pub(super) fn run(
                     // The same landmark triple passes in neighbouring cells: solve it once
                     // per detection triple.
                     let key = [cands[i].index, cands[j].index, cands[k].index];
-                    let solutions = solved.entry(key).or_insert_with(|| {
+                    let (start, count) = *solved.entry(TripleKey(key)).or_insert_with(|| {
                         solves += 1;
-                        p3p(&bearings, &points)
+                        let start = solved_poses.len();
+                        for pose in p3p(&bearings, &points) {
+                            let t = pose.translation.vector;
+                            let inside =
+                                (0..3).all(|a| t[a] >= reach_min[a] && t[a] <= reach_max[a]);
+                            let upright =
+                                up_min_z.is_none_or(|(u, min_z)| (pose.rotation * u).z >= min_z);
+                            if inside && upright {
+                                solved_poses.push(pose);
+                            }
+                        }
+                        (start, solved_poses.len() - start)
                     });
-                    for pose in solutions.iter().copied() {
+                    for &pose in &solved_poses[start..start + count] {
                         if (pose.translation.vector - centre).norm() > radius + position_margin {
                             continue;
                         }
-                        if let Some((u, tol)) = up {
-                            let up_in_world = pose.rotation * u;
-                            if up_in_world.z.clamp(-1.0, 1.0).acos() > tol + UP_CHECK_MARGIN_RAD {
-                                continue;
-                            }
-                        }
                         // Preemptive verification: enough other core detections must each see,
-                        // under this exact pose, one of the landmarks the pair tables allowed
-                        // for them.
-                        if options.min_extensions > 0 {
-                            let mut verified = 0;
-                            for &l in &extensions {
-                                let rows = [
-                                    cell.row(a * n + l, i),
-                                    cell.row(b * n + l, j),
-                                    cell.row(c * n + l, k),
-                                ];
-                                if search.sees_one_of(&pose, l, &rows, [i, j, k], cands) {
-                                    verified += 1;
-                                    if verified >= options.min_extensions {
-                                        break;
-                                    }
-                                }
-                            }
-                            if verified < options.min_extensions {
-                                continue;
-                            }
+                        // under this exact pose, a candidate landmark of the cell.
+                        if options.min_extensions > 0
+                            && !search.verify(&pose, &extensions, [i, j, k], cell)
+                        {
+                            continue;
                         }
                         search.hypotheses += 1;
                         // Only hypotheses that could be the best or a close runner-up are worth
@@ -1007,7 +1167,10 @@ fn conclude(search: &mut Search, cells: usize) -> MatchResult {
             continue;
         }
         match search.refine(&h.pose) {
+            // A pose that refinement moved out of the area is not a fix, nor a runner-up.
+            Some(r) if !search.within_area(&r.pose) => {}
             Some(r) => refined.push(r),
+            None if !search.within_area(&h.pose) => {}
             None => {
                 search.db.within(
                     &h.pose.translation.vector,
@@ -1132,13 +1295,139 @@ mod tests {
     }
 
     #[test]
-    fn meet_outside_ignores_the_excluded_bits() {
-        let x = [0b1011u64, 1 << 3];
-        let y = [0b0011u64, 1 << 3];
-        let z = [0b0111u64, u64::MAX];
-        assert!(meet_outside(&x, &y, &z, [5, 6, 7]));
-        assert!(!meet_outside(&x, &y, &z, [0, 1, 67]));
-        assert!(meet_outside(&x, &y, &z, [0, 9, 9]));
+    fn pair_angle_wander_bounds_every_point_of_the_ball() {
+        let mut r = crate::synthetic::rng(21);
+        let mut tighter = 0;
+        for _ in 0..2_000 {
+            let radius = r.random_range(0.5..10.0);
+            let li = Vector3::new(
+                r.random_range(-80.0..80.0),
+                r.random_range(-80.0..80.0),
+                r.random_range(-5.0..30.0),
+            );
+            // Half the second landmarks near the first (a row of lamps), half anywhere.
+            let lj = if r.random::<bool>() {
+                li + Vector3::new(
+                    r.random_range(-30.0..30.0),
+                    r.random_range(-3.0..3.0),
+                    r.random_range(-1.0..1.0),
+                )
+            } else {
+                Vector3::new(
+                    r.random_range(-80.0..80.0),
+                    r.random_range(-80.0..80.0),
+                    r.random_range(-5.0..30.0),
+                )
+            };
+            let candidate = |l: &Vector3<f64>| {
+                let range = l.norm();
+                Candidate {
+                    index: 0,
+                    direction: l / range,
+                    range,
+                    wander: if range > radius {
+                        (radius / range).asin()
+                    } else {
+                        std::f64::consts::PI
+                    },
+                    survey: 0.0,
+                }
+            };
+            let (ci, cj) = (candidate(&li), candidate(&lj));
+            let bound = pair_angle_wander(&ci, &cj, (li - lj).norm(), radius);
+            if bound < ci.wander + cj.wander {
+                tighter += 1;
+            }
+            let phi = angle_between(&li, &lj);
+            for _ in 0..50 {
+                let x = crate::synthetic::random_unit_vector(&mut r)
+                    * radius
+                    * r.random_range(0.0..1.0f64).cbrt();
+                let moved = angle_between(&(li - x), &(lj - x));
+                assert!(
+                    (moved - phi).abs() <= bound + 1e-12,
+                    "{moved} vs {phi}: bound {bound}"
+                );
+            }
+        }
+        // The gradient bound is the tighter one for most pairs.
+        assert!(tighter > 1_000, "{tighter}");
+    }
+
+    #[test]
+    fn side_from_above_holds_over_the_cylinder_and_the_survey_bounds() {
+        let mut r = crate::synthetic::rng(22);
+        let (mut decided, mut tested) = (0, 0);
+        let point = |r: &mut rand_chacha::ChaCha8Rng| {
+            Vector3::new(
+                r.random_range(-60.0..60.0),
+                r.random_range(-60.0..60.0),
+                r.random_range(0.0..30.0),
+            )
+        };
+        for _ in 0..2_000 {
+            let (li, lj) = (point(&mut r), point(&mut r));
+            let (ei, ej) = (r.random_range(0.0..0.5), r.random_range(0.0..0.5));
+            let half = r.random_range(0.5..10.0);
+            let sign = side_from_above((&li, ei), (&lj, ej), &Vector3::zeros(), half);
+            if sign == 0 {
+                continue;
+            }
+            decided += 1;
+            for _ in 0..50 {
+                let a = r.random_range(0.0..std::f64::consts::TAU);
+                let rho = half * r.random_range(0.0..1.0f64).sqrt();
+                let x = Vector3::new(rho * a.cos(), rho * a.sin(), r.random_range(-5.0..5.0));
+                let shift = |r: &mut rand_chacha::ChaCha8Rng, e: f64| {
+                    crate::synthetic::random_unit_vector(r) * e * r.random_range(0.0..=1.0)
+                };
+                let (pi, pj) = (li + shift(&mut r, ei), lj + shift(&mut r, ej));
+                let det = Vector3::z().dot(&(pi - x).cross(&(pj - x)));
+                assert!(det * f64::from(sign) > 0.0, "{det} against {sign}");
+                tested += 1;
+            }
+        }
+        assert!(decided > 1_000, "{decided}");
+        assert!(tested > 50_000, "{tested}");
+    }
+
+    #[test]
+    fn side_of_bearings_holds_for_every_tilt_and_noise_within_the_bounds() {
+        let mut r = crate::synthetic::rng(23);
+        let (mut decided, mut tested) = (0, 0);
+        for _ in 0..2_000 {
+            let up = crate::synthetic::random_unit_vector(&mut r);
+            let tol = r.random_range(0.0..0.2);
+            let noise = r.random_range(0.0..0.01);
+            let a = crate::synthetic::random_unit_vector(&mut r);
+            let b = crate::synthetic::random_unit_vector(&mut r);
+            let sign = side_of_bearings(&up, tol, noise, &a, &b);
+            if sign == 0 {
+                continue;
+            }
+            decided += 1;
+            // A direction within `angle` of `v`.
+            let turn = |r: &mut rand_chacha::ChaCha8Rng, v: &Vector3<f64>, angle: f64| {
+                let axis = crate::synthetic::random_unit_vector(r);
+                let w = v.cross(&axis);
+                match crate::geometry::try_unit(&w) {
+                    Some(w) => {
+                        let t = angle * r.random_range(0.0..=1.0);
+                        v * t.cos() + w * t.sin()
+                    }
+                    None => *v,
+                }
+            };
+            for _ in 0..50 {
+                let true_up = turn(&mut r, &up, tol);
+                let (ta, tb) = (turn(&mut r, &a, noise), turn(&mut r, &b, noise));
+                let det = true_up.dot(&ta.cross(&tb));
+                assert!(det * f64::from(sign) > 0.0, "{det} against {sign}");
+                tested += 1;
+            }
+        }
+        assert!(decided > 1_000, "{decided}");
+        assert!(tested > 50_000, "{tested}");
     }
 
     #[test]
