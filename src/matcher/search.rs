@@ -121,11 +121,10 @@ struct CellData {
     /// How far each pairwise angle may be from `angles` over the cell, plus the survey terms
     /// (row-major `m × m`, radians): [`pair_angle_wander`] `+ surveyᵢ + surveyⱼ`.
     bounds: Vec<f64>,
-    /// With a known vertical: per candidate pair `(i, j)` (row-major `m × m`) the sign of
-    /// `det[z, Lᵢ − x, Lⱼ − x]` (is `j` left of `i` seen from above), the same for every
-    /// point `x` of the cell, or 0 when the vertical plane through the two landmarks meets
-    /// the cell. Empty without a known vertical.
-    signs: Vec<i8>,
+    /// With a known vertical: per candidate pair `(i, j)` (row-major `m × m`) the range of
+    /// `det[z, uᵢ(x), uⱼ(x)]` (unit directions to the landmarks) over the cell
+    /// ([`det_range_from_above`]). Empty without a known vertical.
+    dets: Vec<(f64, f64)>,
     /// Database indices of the candidates.
     indices: Vec<usize>,
     /// 64-bit words per candidate bitset.
@@ -331,18 +330,17 @@ impl Search<'_> {
         (0..3).all(|a| t[a] >= self.area_min[a] && t[a] <= self.area_max[a])
     }
 
-    /// With a known vertical: which side of detection `a` detection `b` is, seen from above
-    /// ([`side_of_bearings`]), or 0.
-    fn side(&self, a: usize, b: usize) -> i8 {
-        self.up.map_or(0, |(up, tol)| {
-            side_of_bearings(
-                &up,
-                tol,
-                self.noise,
-                &self.directions[a],
-                &self.directions[b],
-            )
-        })
+    /// With a known vertical: `det[up, b_a, b_b]` and how far the true value may be from it
+    /// ([`det_of_bearings`]).
+    fn pair_det(&self, a: usize, b: usize) -> Option<(f64, f64)> {
+        let (up, tol) = self.up?;
+        Some(det_of_bearings(
+            &up,
+            tol,
+            self.noise,
+            &self.directions[a],
+            &self.directions[b],
+        ))
     }
 
     /// Builds the pair table of the ordered detection pair `(a, b)` in a cell (once).
@@ -356,7 +354,7 @@ impl Search<'_> {
         let words = cell.words;
         let theta = angle_between(&self.directions[a], &self.directions[b]);
         let tol = 2.0 * self.noise;
-        let side = self.side(a, b);
+        let pair_det = self.pair_det(a, b);
         let start = cell.store.len();
         cell.slots[key] = (start / (m * words)) as u32;
         cell.store.resize(start + m * words, 0);
@@ -368,15 +366,17 @@ impl Search<'_> {
             let row = &mut table[i * words..(i + 1) * words];
             let angles = &cell.angles[i * m..(i + 1) * m];
             let bounds = &cell.bounds[i * m..(i + 1) * m];
-            let signs = if side != 0 {
-                &cell.signs[i * m..(i + 1) * m]
-            } else {
-                &[]
+            let dets = match pair_det {
+                Some(_) => &cell.dets[i * m..(i + 1) * m],
+                None => &[],
             };
             for_each_bit(allowed_b, |j| {
                 if i != j
                     && (theta - angles[j]).abs() <= tol + bounds[j]
-                    && signs.get(j).is_none_or(|&s| s * side >= 0)
+                    && pair_det.is_none_or(|(d, margin)| {
+                        dets.get(j)
+                            .is_none_or(|&(lo, hi)| d + margin >= lo && d - margin <= hi)
+                    })
                 {
                     bit_set(row, j);
                 }
@@ -634,64 +634,68 @@ fn same_pose(a: &Pose, b: &Pose) -> bool {
         && rotation_angle(&(a.rotation.inverse() * b.rotation)) < DISTINCT_ROTATION_RAD
 }
 
-/// Whether bearing `b` is left (+1) or right (−1) of bearing `a` seen from above, i.e. the
-/// sign of `det[up, a, b]`, or 0 when a tilt of the true up by up to `tol` from `up` or a
-/// move of each bearing by up to `noise` (radians) could flip it. Tilting `up` by at most
-/// `tol` changes the determinant by at most `2 sin(tol/2) |a × b|`, and moving each bearing
-/// by at most `noise` (a chord of at most `noise`) changes it, and the norm of the cross
-/// product, by at most `2 noise + noise²`.
-fn side_of_bearings(
+/// `det[up, a, b]` for two bearings and a bound on how far the true value (the true up,
+/// within `tol` of `up`, and the true bearings, each within `noise`, radians) may be from
+/// it. With a known vertical this is a rotation invariant: it equals `det[z, uᵢ, uⱼ]` for
+/// the world directions of the two landmarks, i.e. `cos eₐ cos e_b sin(α_b − αₐ)` in
+/// elevations and azimuths. Tilting `up` by at most `tol` changes it by at most
+/// `2 sin(tol/2) |a × b|`, and moving each bearing by at most `noise` (a chord of at most
+/// `noise`) changes it, and the norm of the cross product, by at most `2 noise + noise²`.
+fn det_of_bearings(
     up: &Vector3<f64>,
     tol: f64,
     noise: f64,
     a: &Vector3<f64>,
     b: &Vector3<f64>,
-) -> i8 {
+) -> (f64, f64) {
     let cross = a.cross(b);
-    let det = up.dot(&cross);
     let wobble = 2.0 * noise + noise * noise;
-    let margin =
-        2.0 * (0.5 * tol.min(std::f64::consts::PI)).sin() * (cross.norm() + wobble) + wobble;
-    if det > margin {
-        1
-    } else if det < -margin {
-        -1
-    } else {
-        0
-    }
+    let tilt = 2.0 * (0.5 * tol.min(std::f64::consts::PI)).sin();
+    (up.dot(&cross), tilt * (cross.norm() + wobble) + wobble)
 }
 
-/// Which side of landmark `i` landmark `j` is, seen from above, from every point `x` of the
-/// vertical cylinder of horizontal radius `half_horizontal` around `centre`: the sign of
-/// `D(x) = det[z, Lᵢ − x, Lⱼ − x] = ((Lᵢ − x) × (Lⱼ − Lᵢ))_z` (+1: `j` is to the left, i.e.
-/// anticlockwise), or 0 when it is not the same everywhere.
+/// The range of `det[z, uᵢ(x), uⱼ(x)]` (`u`: unit directions from `x` to the landmarks) over
+/// every point `x` of a cell inside the ball of radius `radius` around `centre` and inside
+/// the vertical cylinder of radius `half_horizontal` around it, with the landmarks anywhere
+/// within their survey bounds `eᵢ, eⱼ` (metres) of `Lᵢ, Lⱼ`.
 ///
-/// `D` is linear in `x` (zero on the vertical plane through both landmarks), so over the
-/// cylinder it stays within `|Lⱼ − Lᵢ|_xy · half_horizontal` of `D(centre)`; moving the
-/// landmarks by up to their survey bounds `eᵢ, eⱼ` (metres) changes it by at most
-/// `eᵢ |Lⱼ − x|_xy + eⱼ |Lᵢ − x|_xy + eᵢ eⱼ`. The sign is returned when `|D(centre)|`
-/// exceeds both.
-fn side_from_above(
+/// `det[z, uᵢ, uⱼ] = N(x) / (ρᵢ(x) ρⱼ(x))` with `N(x) = ((Lᵢ − x) × (Lⱼ − Lᵢ))_z`. `N` is
+/// linear in `x` (zero on the vertical plane through both landmarks), so over the cylinder
+/// it stays within `|Lⱼ − Lᵢ|_xy · half_horizontal` of `N(centre)`, and the survey bounds
+/// change it by at most `eᵢ |Lⱼ − x|_xy + eⱼ |Lᵢ − x|_xy + eᵢ eⱼ`; each range `ρ` is within
+/// `radius + e` of its value from the centre. The quotient's range follows by interval
+/// arithmetic, clamped to `[−1, 1]`; `[−1, 1]` when a range may reach 0.
+fn det_range_from_above(
     (li, ei): (&Vector3<f64>, f64),
     (lj, ej): (&Vector3<f64>, f64),
     centre: &Vector3<f64>,
+    radius: f64,
     half_horizontal: f64,
-) -> i8 {
+) -> (f64, f64) {
     let from_i = (li - centre).xy();
     let from_j = (lj - centre).xy();
     let baseline = (lj - li).xy();
-    let side = from_i.perp(&baseline);
+    let n = from_i.perp(&baseline);
     let reach = baseline.norm() * half_horizontal
         + ei * (from_j.norm() + half_horizontal)
         + ej * (from_i.norm() + half_horizontal)
         + ei * ej;
-    if side > reach {
-        1
-    } else if side < -reach {
-        -1
-    } else {
-        0
+    let (n_lo, n_hi) = (n - reach, n + reach);
+    let (ri, rj) = ((li - centre).norm(), (lj - centre).norm());
+    let (ri_lo, rj_lo) = (ri - radius - ei, rj - radius - ej);
+    if ri_lo <= 0.0 || rj_lo <= 0.0 {
+        return (-1.0, 1.0);
     }
+    let den_lo = ri_lo * rj_lo;
+    let den_hi = (ri + radius + ei) * (rj + radius + ej);
+    let (lo, hi) = if n_lo >= 0.0 {
+        (n_lo / den_hi, n_hi / den_lo)
+    } else if n_hi <= 0.0 {
+        (n_lo / den_lo, n_hi / den_hi)
+    } else {
+        (n_lo / den_lo, n_hi / den_lo)
+    };
+    (lo.max(-1.0), hi.min(1.0))
 }
 
 /// The range of elevations (radians) of the offset `v = L − c` seen from every point of the
@@ -843,22 +847,23 @@ pub(super) fn run(
             }
         }
         // Which side of each other landmark a landmark is, seen from above.
-        let mut signs = Vec::new();
+        let mut dets = Vec::new();
         if up.is_some() {
-            signs = vec![0i8; m * m];
+            dets = vec![(-1.0, 1.0); m * m];
             let k = options.inlier_threshold_sigmas;
             for i in 0..m {
                 let li = &db.landmarks()[cands[i].index];
                 for j in i + 1..m {
                     let lj = &db.landmarks()[cands[j].index];
-                    let sign = side_from_above(
+                    let (lo, hi) = det_range_from_above(
                         (&li.position_in_world, k * li.sigma_m),
                         (&lj.position_in_world, k * lj.sigma_m),
                         centre,
+                        radius,
                         half_horizontal,
                     );
-                    signs[i * m + j] = sign;
-                    signs[j * m + i] = -sign;
+                    dets[i * m + j] = (lo, hi);
+                    dets[j * m + i] = (-hi, -lo);
                 }
             }
         }
@@ -899,7 +904,7 @@ pub(super) fn run(
             cands,
             angles,
             bounds,
-            signs,
+            dets,
             indices,
             words,
             allowed,
@@ -1355,9 +1360,9 @@ mod tests {
     }
 
     #[test]
-    fn side_from_above_holds_over_the_cylinder_and_the_survey_bounds() {
+    fn det_range_from_above_holds_over_the_cell_and_the_survey_bounds() {
         let mut r = crate::synthetic::rng(22);
-        let (mut decided, mut tested) = (0, 0);
+        let (mut narrow, mut tested) = (0, 0);
         let point = |r: &mut rand_chacha::ChaCha8Rng| {
             Vector3::new(
                 r.random_range(-60.0..60.0),
@@ -1368,49 +1373,53 @@ mod tests {
         for _ in 0..2_000 {
             let (li, lj) = (point(&mut r), point(&mut r));
             let (ei, ej) = (r.random_range(0.0..0.5), r.random_range(0.0..0.5));
-            let half = r.random_range(0.5..10.0);
-            let sign = side_from_above((&li, ei), (&lj, ej), &Vector3::zeros(), half);
-            if sign == 0 {
-                continue;
+            let (half, half_z): (f64, f64) = (r.random_range(0.5..10.0), r.random_range(0.0..2.0));
+            let radius = (half * half + half_z * half_z).sqrt();
+            let (lo, hi) =
+                det_range_from_above((&li, ei), (&lj, ej), &Vector3::zeros(), radius, half);
+            assert!(lo <= hi);
+            if hi - lo < 0.5 {
+                narrow += 1;
             }
-            decided += 1;
             for _ in 0..50 {
                 let a = r.random_range(0.0..std::f64::consts::TAU);
                 let rho = half * r.random_range(0.0..1.0f64).sqrt();
-                let x = Vector3::new(rho * a.cos(), rho * a.sin(), r.random_range(-5.0..5.0));
+                let x = Vector3::new(
+                    rho * a.cos(),
+                    rho * a.sin(),
+                    r.random_range(-half_z..=half_z),
+                );
                 let shift = |r: &mut rand_chacha::ChaCha8Rng, e: f64| {
                     crate::synthetic::random_unit_vector(r) * e * r.random_range(0.0..=1.0)
                 };
                 let (pi, pj) = (li + shift(&mut r, ei), lj + shift(&mut r, ej));
-                let det = Vector3::z().dot(&(pi - x).cross(&(pj - x)));
-                assert!(det * f64::from(sign) > 0.0, "{det} against {sign}");
+                let (ui, uj) = ((pi - x).normalize(), (pj - x).normalize());
+                let det = Vector3::z().dot(&ui.cross(&uj));
+                assert!(
+                    det >= lo - 1e-12 && det <= hi + 1e-12,
+                    "{det} not in [{lo}, {hi}]"
+                );
                 tested += 1;
             }
         }
-        assert!(decided > 1_000, "{decided}");
-        assert!(tested > 50_000, "{tested}");
+        assert!(narrow > 1_000, "{narrow}");
+        assert!(tested == 100_000);
     }
 
     #[test]
-    fn side_of_bearings_holds_for_every_tilt_and_noise_within_the_bounds() {
+    fn det_of_bearings_bounds_every_tilt_and_noise_within_the_tolerances() {
         let mut r = crate::synthetic::rng(23);
-        let (mut decided, mut tested) = (0, 0);
         for _ in 0..2_000 {
             let up = crate::synthetic::random_unit_vector(&mut r);
             let tol = r.random_range(0.0..0.2);
             let noise = r.random_range(0.0..0.01);
             let a = crate::synthetic::random_unit_vector(&mut r);
             let b = crate::synthetic::random_unit_vector(&mut r);
-            let sign = side_of_bearings(&up, tol, noise, &a, &b);
-            if sign == 0 {
-                continue;
-            }
-            decided += 1;
+            let (value, margin) = det_of_bearings(&up, tol, noise, &a, &b);
             // A direction within `angle` of `v`.
             let turn = |r: &mut rand_chacha::ChaCha8Rng, v: &Vector3<f64>, angle: f64| {
                 let axis = crate::synthetic::random_unit_vector(r);
-                let w = v.cross(&axis);
-                match crate::geometry::try_unit(&w) {
+                match crate::geometry::try_unit(&v.cross(&axis)) {
                     Some(w) => {
                         let t = angle * r.random_range(0.0..=1.0);
                         v * t.cos() + w * t.sin()
@@ -1422,12 +1431,12 @@ mod tests {
                 let true_up = turn(&mut r, &up, tol);
                 let (ta, tb) = (turn(&mut r, &a, noise), turn(&mut r, &b, noise));
                 let det = true_up.dot(&ta.cross(&tb));
-                assert!(det * f64::from(sign) > 0.0, "{det} against {sign}");
-                tested += 1;
+                assert!(
+                    (det - value).abs() <= margin + 1e-12,
+                    "{det} vs {value} ± {margin}"
+                );
             }
         }
-        assert!(decided > 1_000, "{decided}");
-        assert!(tested > 50_000, "{tested}");
     }
 
     #[test]
