@@ -194,10 +194,11 @@ fn projector_sum<const EXACT: bool>(
     } else if !(unit_deviation <= UNIT_DIRECTION_TOLERANCE
         && ((bx + by + bz) + (axx + ayy + azz)).is_finite())
     {
-        // Every ray valid ⇒ both tests pass: a non-unit direction raises the deviation (a NaN
-        // one, which the maximum skips, makes a diagonal sum NaN), a non-finite origin makes
-        // its offset yᵢ, then its uᵢ·yᵢ and b non-finite. They also fail on valid rays whose
-        // sums overflow: the exact path then finds no invalid ray and carries on.
+        // Both tests pass only when every ray is valid ([`check_ray`]): a non-unit direction
+        // raises the deviation (a NaN one, which the maximum skips, makes a diagonal of A
+        // NaN), a non-finite origin makes its offset yᵢ, then uᵢ·yᵢ and b non-finite. Valid
+        // rays fail them only when the sums overflow: the exact path then finds no invalid
+        // ray and carries on.
         return projector_sum_exact(obs);
     }
     let uu = Sym3 {
@@ -241,10 +242,11 @@ fn projector_sum<const EXACT: bool>(
         && s_sum < f64::INFINITY
         && range_min > 0.0)
     {
-        // Every σ ≥ 0 with σ_pos² + σ_ang² finite ([`check_noise`]) and every range > 0
-        // ⇐ these tests (a NaN σ, skipped by the extrema, makes its sᵢ and the sum NaN; a
-        // NaN range comes from a non-finite offset, which makes sᵢ NaN or infinite). They also fail on valid input whose largest σs, or
-        // Σ sᵢ, overflow together: the exact path then finds no offender and carries on.
+        // These tests pass only when every σ ≥ 0 with σ_pos² + σ_ang² finite
+        // ([`check_noise`]) and every range > 0: a NaN σ, which the extrema skip, makes its
+        // sᵢ and the sum NaN; a NaN range comes from a non-finite offset, which makes sᵢ NaN
+        // or infinite. Valid input fails them only when the largest σs, or Σ sᵢ, overflow:
+        // the exact path then finds no offender and carries on.
         return projector_sum_exact(obs);
     }
     let m = Sym3::diagonal(s_sum).minus(&m_uu);
@@ -710,7 +712,7 @@ mod tests {
         let rc = reciprocal_condition(&a);
         // The conditioning test first; what fails it is a singular A or overflow (on which
         // the sum of b's entries is not finite).
-        if !(rc >= MIN_RECIPROCAL_CONDITION) {
+        if rc < MIN_RECIPROCAL_CONDITION {
             return Err(if b.sum().is_finite() {
                 TriangulationError::IllConditioned {
                     reciprocal_condition: rc,
@@ -729,7 +731,7 @@ mod tests {
             }
             let r = q - (o.ray.origin - x0);
             let range_m = r.dot(&o.ray.direction);
-            if !(range_m > 0.0) {
+            if range_m.is_nan() || range_m <= 0.0 {
                 return Err(TriangulationError::BehindRay { index, range_m });
             }
             m += projector(&o.ray.direction) * (sp * sp + sa * sa * r.norm_squared());
