@@ -128,112 +128,161 @@ fn sin_cos_between(a: &Vector3<f64>, b: &Vector3<f64>) -> SinCos {
 /// - J. S. Ku, S. Ho, S. Sarma, "Landmark Mapping from Unbiased Observations", eq. (2) (the
 ///   estimator), eq. (4) (position noise); the angular term is re-derived here.
 pub fn triangulate_rays(obs: &[RayObservation]) -> Result<TriangulatedPoint, TriangulationError> {
+    // Two rays, the commonest small case, with a constant trip count: both passes unrolled.
+    match <&[RayObservation; 2]>::try_from(obs) {
+        Ok(pair) => projector_sum::<false>(pair),
+        Err(_) => projector_sum::<false>(obs),
+    }
+}
+
+/// [`triangulate_rays`] itself. With `EXACT = false` (the hot path) the inputs are validated
+/// by a few running extrema and sums that hold for every valid input; when one of those tests
+/// fails, the whole computation is redone by [`projector_sum_exact`] with `EXACT = true`,
+/// which checks every observation in order instead and so returns the first offender (or,
+/// when none offends, the same result as the hot path would have).
+#[inline(always)]
+fn projector_sum<const EXACT: bool>(
+    obs: &[RayObservation],
+) -> Result<TriangulatedPoint, TriangulationError> {
     let first = validate_count(obs)?;
     let reference = first.ray.origin;
     let u0 = first.ray.direction;
-    // Pass 1: A = Σ Pᵢ = nI − Σ uᵢuᵢᵀ and b = Σ Pᵢyᵢ = Σ yᵢ − Σ uᵢ(uᵢ·yᵢ) with yᵢ = xᵢ − x₀,
-    // and the ray farthest from the first. Validity is accumulated as a flag (no branch per
-    // ray); the first offender is found on the cold path.
-    let mut uu = Sym3::default();
-    let mut b = Vector3::zeros();
+    // Pass 1: A = Σ Pᵢ = nI − Σ uᵢuᵢᵀ and b = Σ Pᵢyᵢ = Σ yᵢ − Σ uᵢ(uᵢ·yᵢ) with yᵢ = xᵢ − x₀
+    // (six and three scalars in locals), the ray farthest from the first (by index), and
+    // the largest deviation of |uᵢ|² from 1.
+    let (r0x, r0y, r0z) = (reference.x, reference.y, reference.z);
+    let (u0x, u0y, u0z) = (u0.x, u0.y, u0.z);
+    let (mut axx, mut axy, mut axz, mut ayy, mut ayz, mut azz) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    let (mut bx, mut by, mut bz) = (0.0, 0.0, 0.0);
     let mut far_cos = 1.0;
-    let mut far = u0;
-    let mut rays_ok = true;
-    for o in obs {
-        let u = o.ray.direction;
-        rays_ok &= ray_is_valid(&o.ray);
-        let cos = u.dot(&u0);
+    let mut far = 0;
+    let mut unit_deviation: f64 = 0.0;
+    for (index, o) in obs.iter().enumerate() {
+        let (ux, uy, uz) = (o.ray.direction.x, o.ray.direction.y, o.ray.direction.z);
+        let (xx, yy, zz) = (ux * ux, uy * uy, uz * uz);
+        let deviation = ((xx + yy + zz) - 1.0).abs();
+        unit_deviation = if deviation > unit_deviation {
+            deviation
+        } else {
+            unit_deviation
+        };
+        let cos = ux * u0x + uy * u0y + uz * u0z;
         if cos < far_cos {
             far_cos = cos;
-            far = u;
+            far = index;
         }
-        let y = o.ray.origin - reference;
-        uu.add_outer(1.0, &u);
-        b += y - u * u.dot(&y);
+        let (dx, dy, dz) = (
+            o.ray.origin.x - r0x,
+            o.ray.origin.y - r0y,
+            o.ray.origin.z - r0z,
+        );
+        axx += xx;
+        axy += ux * uy;
+        axz += ux * uz;
+        ayy += yy;
+        ayz += uy * uz;
+        azz += zz;
+        let t = ux * dx + uy * dy + uz * dz;
+        bx += dx - ux * t;
+        by += dy - uy * t;
+        bz += dz - uz * t;
     }
-    if !rays_ok {
-        return Err(first_invalid_ray(obs));
+    if EXACT {
+        if let Some(e) = first_invalid_ray(obs) {
+            return Err(e);
+        }
+    } else if !(unit_deviation <= UNIT_DIRECTION_TOLERANCE
+        && ((bx + by + bz) + (axx + ayy + azz)).is_finite())
+    {
+        // Both tests pass only when every ray is valid ([`check_ray`]): a non-unit direction
+        // raises the deviation (a NaN one, which the maximum skips, makes a diagonal of A
+        // NaN), a non-finite origin makes its offset yᵢ, then uᵢ·yᵢ and b non-finite. Valid
+        // rays fail them only when the sums overflow: the exact path then finds no invalid
+        // ray and carries on.
+        return projector_sum_exact(obs);
     }
-    let n = obs.len() as f64;
-    let a = Sym3::diagonal(n).minus(&uu);
-    let (a_inv, q) = solve(&a, &b)?;
-    // Pass 2: ranges at the estimate, in-front check, middle term of the sandwich
-    // M = Σ sᵢPᵢ = (Σ sᵢ) I − Σ sᵢuᵢuᵢᵀ, the largest σ_ang, and what validates the noise
-    // levels (the smallest σ and a scaled sum of σ², tested after the loop).
+    let uu = Sym3 {
+        xx: axx,
+        xy: axy,
+        xz: axz,
+        yy: ayy,
+        yz: ayz,
+        zz: azz,
+    };
+    let a = Sym3::diagonal(obs.len() as f64).minus(&uu);
+    let (a_inv, q) = solve(&a, &Vector3::new(bx, by, bz))?;
+    // Pass 2: ranges at the estimate, middle term of the sandwich
+    // M = Σ sᵢPᵢ = (Σ sᵢ) I − Σ sᵢuᵢuᵢᵀ, the extreme σs and the smallest range along a ray.
     let mut m_uu = Sym3::default();
     let mut s_sum = 0.0;
-    let mut in_front = true;
-    let (mut sp_min, mut sa_min, mut sa_max): (f64, f64, f64) = (0.0, 0.0, 0.0);
-    let mut noise_sum = 0.0;
+    let mut range_min = f64::INFINITY;
+    let (mut sp_min, mut sa_min, mut sp_max, mut sa_max): (f64, f64, f64, f64) =
+        (0.0, 0.0, 0.0, 0.0);
     for o in obs {
         let u = o.ray.direction;
         let r = q - (o.ray.origin - reference);
         let (sp, sa) = (o.sigma_pos_m, o.sigma_ang_rad);
         sp_min = if sp < sp_min { sp } else { sp_min };
         sa_min = if sa < sa_min { sa } else { sa_min };
+        sp_max = if sp > sp_max { sp } else { sp_max };
         sa_max = if sa > sa_max { sa } else { sa_max };
-        let (sp2, sa2) = (sp * sp, sa * sa);
-        noise_sum += (sp2 + sa2) * NOISE_SUM_SCALE;
-        let s = sp2 + sa2 * r.norm_squared();
-        // False for NaN.
-        in_front &= r.dot(&u) > 0.0;
+        let s = sp * sp + sa * sa * r.norm_squared();
+        let range = r.dot(&u);
+        range_min = if range < range_min { range } else { range_min };
         s_sum += s;
         m_uu.add_outer(s, &u);
     }
-    // Every σ ≥ 0 and every σ_pos² + σ_ang² finite ([`check_noise`]): a NaN σ is missed by
-    // the minima but makes the sum NaN; the scaled sum cannot overflow on its own.
-    let noise_ok = sp_min >= 0.0 && sa_min >= 0.0 && noise_sum < f64::INFINITY;
-    if !(noise_ok && in_front) {
-        return Err(first_noise_or_behind(obs, &reference, &q));
+    if EXACT {
+        if let Some(e) = first_noise_or_behind(obs, &reference, &q) {
+            return Err(e);
+        }
+    } else if !(sp_min >= 0.0
+        && sa_min >= 0.0
+        && sp_max * sp_max + sa_max * sa_max < f64::INFINITY
+        && s_sum < f64::INFINITY
+        && range_min > 0.0)
+    {
+        // These tests pass only when every σ ≥ 0 with σ_pos² + σ_ang² finite
+        // ([`check_noise`]) and every range > 0: a NaN σ, which the extrema skip, makes its
+        // sᵢ and the sum NaN; a NaN range comes from a non-finite offset, which makes sᵢ NaN
+        // or infinite. Valid input fails them only when the largest σs, or Σ sᵢ, overflow:
+        // the exact path then finds no offender and carries on.
+        return projector_sum_exact(obs);
     }
     let m = Sym3::diagonal(s_sum).minus(&m_uu);
-    let parallax = sin_cos_between(&u0, &far);
+    let far_direction = obs.get(far).map_or(u0, |o| o.ray.direction);
+    let parallax = sin_cos_between(&u0, &far_direction);
     check_parallax_sigma(
         sa_max,
         finish(reference, q, &a_inv, &m, obs.len(), parallax)?,
     )
 }
 
-/// True for a ray with a finite origin and a unit direction (see [`check_ray`]).
-#[inline(always)]
-fn ray_is_valid(ray: &Ray) -> bool {
-    let uu = ray.direction.norm_squared();
-    // False for NaN.
-    ((uu - 1.0).abs() <= UNIT_DIRECTION_TOLERANCE) & is_finite(&ray.origin)
-}
-
-/// Scale (2⁻⁶⁴) of the running sum of `σ_pos² + σ_ang²` that validates the noise levels in
-/// [`triangulate_rays`]: each term is finite exactly when the unscaled one is, and fewer than
-/// 2⁶⁴ finite terms cannot overflow the sum.
-const NOISE_SUM_SCALE: f64 = 1.0 / 18_446_744_073_709_551_616.0;
-
-/// The error for the first invalid ray (the cold path of [`triangulate_rays`]).
+/// [`projector_sum`] with every observation checked in order (the cold path of
+/// [`triangulate_rays`]).
 #[cold]
 #[inline(never)]
-fn first_invalid_ray(obs: &[RayObservation]) -> TriangulationError {
-    for (index, o) in obs.iter().enumerate() {
-        if let Err(e) = check_ray(index, &o.ray) {
-            return e;
-        }
-    }
-    TriangulationError::NonFinite
+fn projector_sum_exact(obs: &[RayObservation]) -> Result<TriangulatedPoint, TriangulationError> {
+    projector_sum::<true>(obs)
+}
+
+/// The error for the first invalid ray, if any.
+fn first_invalid_ray(obs: &[RayObservation]) -> Option<TriangulationError> {
+    obs.iter()
+        .enumerate()
+        .find_map(|(index, o)| check_ray(index, &o.ray).err())
 }
 
 /// The error for the first observation, in order, with invalid noise or with the point at
-/// `q` (relative to `reference`) not in front of it (the cold path of [`triangulate_rays`]).
-#[cold]
-#[inline(never)]
+/// `q` (relative to `reference`) not in front of it, if any.
 fn first_noise_or_behind(
     obs: &[RayObservation],
     reference: &Vector3<f64>,
     q: &Vector3<f64>,
-) -> TriangulationError {
-    for (index, o) in obs.iter().enumerate() {
-        if let Err(e) = residual_variance(index, o, reference, q) {
-            return e;
-        }
-    }
-    TriangulationError::NonFinite
+) -> Option<TriangulationError> {
+    obs.iter()
+        .enumerate()
+        .find_map(|(index, o)| residual_variance(index, o, reference, q).err())
 }
 
 /// The inverse-variance weighted projector sum: one re-weighting step of
@@ -626,4 +675,382 @@ fn finish(
         n_obs,
         max_parallax_sin_cos,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    //! [`triangulate_rays`] against a straightforward implementation of its doc comment.
+    use super::*;
+    use crate::synthetic::rays::RayProblem;
+    use crate::synthetic::{random_unit_vector, rng};
+    use crate::triangulation::{MIN_PARALLAX_SIGMAS, reciprocal_condition};
+    use rand::RngExt;
+
+    /// The estimator written out plainly: projectors as matrices, one check per observation
+    /// in the documented order, `A⁻¹` by nalgebra, the parallax by `atan2`.
+    fn reference(obs: &[RayObservation]) -> Result<TriangulatedPoint, TriangulationError> {
+        if obs.len() < MIN_RAYS {
+            return Err(TriangulationError::TooFewRays(obs.len()));
+        }
+        for (index, o) in obs.iter().enumerate() {
+            let u = o.ray.direction;
+            if !((u.norm_squared() - 1.0).abs() <= UNIT_DIRECTION_TOLERANCE
+                && is_finite(&o.ray.origin))
+            {
+                return Err(TriangulationError::InvalidRay { index });
+            }
+        }
+        let x0 = obs[0].ray.origin;
+        let projector = |u: &Vector3<f64>| Matrix3::identity() - u * u.transpose();
+        let mut a = Matrix3::zeros();
+        let mut b = Vector3::zeros();
+        for o in obs {
+            let p = projector(&o.ray.direction);
+            a += p;
+            b += p * (o.ray.origin - x0);
+        }
+        let rc = reciprocal_condition(&a);
+        // The conditioning test first; what fails it is a singular A or overflow (on which
+        // the sum of b's entries is not finite).
+        if rc < MIN_RECIPROCAL_CONDITION {
+            return Err(if b.sum().is_finite() {
+                TriangulationError::IllConditioned {
+                    reciprocal_condition: rc,
+                }
+            } else {
+                TriangulationError::NonFinite
+            });
+        }
+        let a_inv = a.try_inverse().ok_or(TriangulationError::NonFinite)?;
+        let q = a_inv * b;
+        let mut m = Matrix3::zeros();
+        for (index, o) in obs.iter().enumerate() {
+            let (sp, sa) = (o.sigma_pos_m, o.sigma_ang_rad);
+            if !(sp >= 0.0 && sa >= 0.0 && (sp * sp + sa * sa).is_finite()) {
+                return Err(TriangulationError::InvalidNoise { index });
+            }
+            let r = q - (o.ray.origin - x0);
+            let range_m = r.dot(&o.ray.direction);
+            if range_m.is_nan() || range_m <= 0.0 {
+                return Err(TriangulationError::BehindRay { index, range_m });
+            }
+            m += projector(&o.ray.direction) * (sp * sp + sa * sa * r.norm_squared());
+        }
+        let covariance = a_inv * m * a_inv;
+        let point = x0 + q;
+        if !(point.iter().all(|v| v.is_finite()) && covariance.iter().all(|v| v.is_finite())) {
+            return Err(TriangulationError::NonFinite);
+        }
+        let u0 = obs[0].ray.direction;
+        let parallax_rad = obs
+            .iter()
+            .map(|o| {
+                u0.cross(&o.ray.direction)
+                    .norm()
+                    .atan2(u0.dot(&o.ray.direction))
+            })
+            .fold(0.0, f64::max);
+        let sigma_rad = obs.iter().map(|o| o.sigma_ang_rad).fold(0.0, f64::max);
+        if sigma_rad > 0.0 && parallax_rad < MIN_PARALLAX_SIGMAS * sigma_rad {
+            return Err(TriangulationError::WeakParallax {
+                parallax_rad,
+                sigma_rad,
+            });
+        }
+        Ok(TriangulatedPoint {
+            point,
+            covariance,
+            n_obs: obs.len(),
+            max_parallax_sin_cos: (parallax_rad.sin(), parallax_rad.cos()),
+        })
+    }
+
+    /// Largest relative difference of the point (about the first observer) and of the
+    /// covariance (Frobenius) between two estimates; panics on different parallaxes.
+    fn relative_difference(
+        obs: &[RayObservation],
+        a: &TriangulatedPoint,
+        b: &TriangulatedPoint,
+    ) -> f64 {
+        let x0 = obs[0].ray.origin;
+        assert_eq!(a.n_obs, b.n_obs);
+        assert!((a.max_parallax_rad() - b.max_parallax_rad()).abs() < 1e-12);
+        let dp = (a.point - b.point).norm() / (a.point - x0).norm();
+        let dc = (a.covariance - b.covariance).norm() / a.covariance.norm();
+        dp.max(dc)
+    }
+
+    /// Same variant, same index; the reported values agree to rounding.
+    fn assert_same_error(a: TriangulationError, b: TriangulationError) {
+        use TriangulationError::*;
+        let close = |x: f64, y: f64| x == y || (x - y).abs() <= 1e-9 * x.abs().max(y.abs());
+        let same = match (a, b) {
+            (TooFewRays(i), TooFewRays(j)) => i == j,
+            (InvalidRay { index: i }, InvalidRay { index: j })
+            | (InvalidNoise { index: i }, InvalidNoise { index: j }) => i == j,
+            (
+                BehindRay {
+                    index: i,
+                    range_m: x,
+                },
+                BehindRay {
+                    index: j,
+                    range_m: y,
+                },
+            ) => i == j && (close(x, y) || (x.is_nan() && y.is_nan()) || x.abs() < 1e-6),
+            (IllConditioned { .. }, IllConditioned { .. }) | (NonFinite, NonFinite) => true,
+            (
+                WeakParallax {
+                    parallax_rad: p,
+                    sigma_rad: s,
+                },
+                WeakParallax {
+                    parallax_rad: q,
+                    sigma_rad: t,
+                },
+            ) => close(p, q) && s == t,
+            _ => false,
+        };
+        assert!(same, "{a:?} != {b:?}");
+    }
+
+    fn noisy(seed: u64, n: usize) -> Vec<RayObservation> {
+        let mut r = rng(seed);
+        RayProblem::around(&mut r, n, 5.0, 80.0, 0.1, 2e-3).noisy_observations(&mut r)
+    }
+
+    #[test]
+    fn matches_the_reference_on_random_problems() {
+        let mut r = rng(20_261_122);
+        let mut worst: f64 = 0.0;
+        let mut solved = 0;
+        for k in 0..3_000 {
+            let n = 2 + k % 11;
+            let mut obs =
+                RayProblem::around(&mut r, n, 5.0, 80.0, 0.1, 2e-3).noisy_observations(&mut r);
+            if k % 3 == 0 {
+                // Far from the frame's origin (ECEF-like) and with per-ray noise levels.
+                let offset = Vector3::new(4.2e6, 1.1e6, 4.6e6);
+                for o in &mut obs {
+                    o.ray.origin += offset;
+                    o.sigma_pos_m = r.random_range(0.0..0.5);
+                    o.sigma_ang_rad = r.random_range(0.0..4e-3);
+                }
+            }
+            match (triangulate_rays(&obs), reference(&obs)) {
+                (Ok(a), Ok(b)) => {
+                    solved += 1;
+                    worst = worst.max(relative_difference(&obs, &a, &b));
+                }
+                (Err(a), Err(b)) => assert_same_error(a, b),
+                (a, b) => panic!("problem {k}: {a:?} vs {b:?}"),
+            }
+        }
+        assert!(worst <= 1e-12, "largest relative difference {worst:e}");
+        assert!(solved > 2_900, "{solved} of 3000 solved");
+    }
+
+    /// Corrupts observation fields with special values: every validation path, in order.
+    #[test]
+    fn same_errors_as_the_reference_on_corrupted_inputs() {
+        const SPECIAL: [f64; 12] = [
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            -1.0,
+            0.0,
+            -0.0,
+            1e308,
+            -1e308,
+            1.3e154,
+            1e-310,
+            2.0,
+            0.5,
+        ];
+        let mut r = rng(7);
+        let mut seen = std::collections::BTreeSet::new();
+        for _ in 0..20_000 {
+            let n = r.random_range(1..7);
+            let mut obs =
+                RayProblem::around(&mut r, n, 5.0, 80.0, 0.1, 2e-3).noisy_observations(&mut r);
+            for _ in 0..r.random_range(1..4) {
+                let i = r.random_range(0..n);
+                let v = SPECIAL[r.random_range(0..SPECIAL.len())];
+                let k = r.random_range(0..3);
+                match r.random_range(0..9) {
+                    0 => obs[i].ray.origin[k] = v,
+                    1 => obs[i].ray.direction[k] = v,
+                    2 => obs[i].sigma_pos_m = v,
+                    3 => obs[i].sigma_ang_rad = v,
+                    4 => obs[i].ray.direction = obs[r.random_range(0..n)].ray.direction,
+                    5 => obs[i].ray.direction = -obs[r.random_range(0..n)].ray.direction,
+                    6 => obs[i].ray.direction *= 1.0 + r.random_range(-2e-6..2e-6),
+                    7 => obs[i].ray.origin *= v,
+                    _ => obs[i].sigma_ang_rad = r.random_range(0.0..0.3),
+                }
+            }
+            match (triangulate_rays(&obs), reference(&obs)) {
+                (Ok(a), Ok(b)) => {
+                    seen.insert("Ok");
+                    // Rounding differences grow with the condition number (near-parallel
+                    // rays are accepted down to MIN_RECIPROCAL_CONDITION).
+                    let a_matrix: Matrix3<f64> = obs
+                        .iter()
+                        .map(|o| {
+                            Matrix3::identity() - o.ray.direction * o.ray.direction.transpose()
+                        })
+                        .sum();
+                    let tolerance = 1e-13 / reciprocal_condition(&a_matrix);
+                    let d = relative_difference(&obs, &a, &b);
+                    assert!(d <= tolerance, "{d:e} > {tolerance:e}: {obs:?}");
+                }
+                (Err(a), Err(b)) => {
+                    seen.insert(
+                        format!("{a:?}")
+                            .split([' ', '('])
+                            .next()
+                            .unwrap_or("")
+                            .to_owned()
+                            .leak(),
+                    );
+                    assert_same_error(a, b);
+                }
+                // Near overflow, the sandwich's evaluation order decides whether an
+                // intermediate product overflows.
+                (Ok(p), Err(TriangulationError::NonFinite))
+                | (Err(TriangulationError::NonFinite), Ok(p))
+                    if p.covariance.amax() > 1e300 => {}
+                (a, b) => panic!("{obs:?}: {a:?} vs {b:?}"),
+            }
+        }
+        // Every outcome was exercised.
+        assert_eq!(seen.len(), 8, "{seen:?}");
+    }
+
+    #[test]
+    fn first_offender_is_reported() {
+        use TriangulationError::*;
+        let obs = noisy(1, 5);
+        assert_eq!(triangulate_rays(&obs[..1]), Err(TooFewRays(1)));
+        assert_eq!(triangulate_rays(&[]), Err(TooFewRays(0)));
+        let with = |f: &dyn Fn(&mut Vec<RayObservation>)| {
+            let mut o = obs.clone();
+            f(&mut o);
+            triangulate_rays(&o)
+        };
+        assert_eq!(
+            with(&|o| o[3].ray.origin.y = f64::NAN),
+            Err(InvalidRay { index: 3 })
+        );
+        assert_eq!(
+            with(&|o| o[0].ray.origin.x = f64::INFINITY),
+            Err(InvalidRay { index: 0 })
+        );
+        assert_eq!(
+            with(&|o| o[2].ray.direction *= 1.01),
+            Err(InvalidRay { index: 2 })
+        );
+        assert_eq!(
+            with(&|o| {
+                o[4].ray.direction.z = f64::NAN;
+                o[1].ray.direction.x = f64::NAN;
+            }),
+            Err(InvalidRay { index: 1 })
+        );
+        // A bad ray is reported before bad noise at a lower index.
+        assert_eq!(
+            with(&|o| {
+                o[0].sigma_pos_m = -1.0;
+                o[4].ray.origin.z = f64::NEG_INFINITY;
+            }),
+            Err(InvalidRay { index: 4 })
+        );
+        assert_eq!(
+            with(&|o| o[1].sigma_pos_m = -0.1),
+            Err(InvalidNoise { index: 1 })
+        );
+        assert_eq!(
+            with(&|o| o[2].sigma_ang_rad = f64::NAN),
+            Err(InvalidNoise { index: 2 })
+        );
+        assert_eq!(
+            with(&|o| o[4].sigma_pos_m = f64::INFINITY),
+            Err(InvalidNoise { index: 4 })
+        );
+        assert_eq!(
+            with(&|o| {
+                o[3].sigma_pos_m = 1e200;
+                o[3].sigma_ang_rad = 1e200;
+            }),
+            Err(InvalidNoise { index: 3 })
+        );
+        assert!(matches!(
+            with(&|o| {
+                let u = o[0].ray.direction;
+                o.iter_mut().for_each(|x| x.ray.direction = u);
+            }),
+            Err(IllConditioned { .. })
+        ));
+        // Ray 2 turned around: the point is behind it (and, the estimate moving, maybe
+        // behind no other), and that is reported unless noise is bad before it.
+        let behind = with(&|o| o[2].ray.direction = -o[2].ray.direction);
+        assert!(matches!(behind, Err(BehindRay { .. })), "{behind:?}");
+        assert_same_error(
+            behind.unwrap_err(),
+            reference(&{
+                let mut o = obs.clone();
+                o[2].ray.direction = -o[2].ray.direction;
+                o
+            })
+            .unwrap_err(),
+        );
+    }
+
+    /// The hot path's validation by extrema and sums also fails on some valid inputs; the
+    /// exact path must then carry on and give the reference's outcome.
+    #[test]
+    fn overflowing_extrema_take_the_exact_path() {
+        let landmark = Vector3::new(0.0, 0.0, 0.0);
+        let mut r = rng(3);
+        let mut obs: Vec<RayObservation> = (0..3)
+            .map(|_| {
+                let u = random_unit_vector(&mut r);
+                RayObservation {
+                    ray: Ray::try_new(landmark - u * 0.5, u).unwrap(),
+                    sigma_pos_m: 0.0,
+                    sigma_ang_rad: 0.0,
+                }
+            })
+            .collect();
+        // Each σ_pos² + σ_ang² is finite, the largest σ_pos² + the largest σ_ang² is not.
+        obs[0].sigma_pos_m = 1.3e154;
+        obs[1].sigma_ang_rad = 4e153;
+        let (a, b) = (triangulate_rays(&obs), reference(&obs));
+        assert!(
+            matches!(a, Err(TriangulationError::WeakParallax { .. })),
+            "{a:?}"
+        );
+        assert_same_error(a.unwrap_err(), b.unwrap_err());
+        // Observers so far apart that the normal equations' sums overflow.
+        let mut far = noisy(5, 3);
+        far[1].ray.origin = Vector3::new(1.2e308, 1.2e308, 0.0);
+        far[1].ray.direction = Vector3::new(-0.5, -0.5, std::f64::consts::FRAC_1_SQRT_2);
+        let (a, b) = (triangulate_rays(&far), reference(&far));
+        assert!(a.is_err(), "{a:?}");
+        assert_same_error(a.unwrap_err(), b.unwrap_err());
+    }
+
+    #[test]
+    fn two_ray_path_equals_the_general_path() {
+        // The two-ray case is the general code with a constant length; a third ray equal to
+        // the second changes A and M by a known amount, so compare against the reference.
+        for seed in 0..200 {
+            let obs = noisy(seed, 2);
+            match (triangulate_rays(&obs), reference(&obs)) {
+                (Ok(a), Ok(b)) => assert!(relative_difference(&obs, &a, &b) <= 1e-12),
+                (Err(a), Err(b)) => assert_same_error(a, b),
+                (a, b) => panic!("seed {seed}: {a:?} vs {b:?}"),
+            }
+        }
+    }
 }
