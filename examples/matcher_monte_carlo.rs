@@ -4,7 +4,8 @@
 //! Run: `cargo run --release --example matcher_monte_carlo -- [prior|cold] [FRAMES] [SEED]`
 //!
 //! Environment: `UP_TOL_DEG=4` (known vertical to 4°), `CELL_M`, `MIN_EXT`, `TRUE_DET`,
-//! `FALSE_DET`, `MARGIN` (ambiguity margin), `SPARSE=1` (the 1,060-landmark city with a prior), `VERBOSE=1`.
+//! `FALSE_DET`, `MARGIN` (ambiguity margin), `SPARSE=1` (the 1,060-landmark city with a prior), `VERBOSE=1`,
+//! `FROM=N` (generate frames 0..N but match only from frame N on: reproduces frame N alone).
 use std::time::Instant;
 use vgps::geometry::Ray;
 use vgps::matcher::{Detection, MatchOptions, MatchStatus, match_detections};
@@ -69,6 +70,10 @@ fn main() {
     let mut coincident = 0usize;
     let gate = options.inlier_threshold_sigmas * options.sigma_rad;
     let mut times = Vec::with_capacity(frames);
+    let from: usize = std::env::var("FROM")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0);
     for frame_index in 0..frames {
         let trial = if cold {
             world.cold_trial(&mut r, &frame_config, &db)
@@ -76,6 +81,9 @@ fn main() {
             world.prior_trial(&mut r, &frame_config)
         };
         let (pose, frame, area) = (trial.pose, trial.frame, trial.area);
+        if frame_index < from {
+            continue;
+        }
         let detections: Vec<Detection> = frame
             .detections
             .iter()
@@ -156,6 +164,11 @@ fn main() {
         }
     }
     times.sort_by(f64::total_cmp);
+    let frames = times.len();
+    if frames == 0 {
+        println!("no frame matched (FROM is past the last frame)");
+        return;
+    }
     let pct = |x: usize| 100.0 * x as f64 / frames as f64;
     println!(
         "{mode}: {} landmarks, {frames} frames: right {right} ({:.2} %), right pose with a coincident false detection linked {coincident} ({:.2} %), wrong fixes {wrong} ({:.3} %), ambiguous {ambiguous} ({:.2} %), other no-fix/partly-wrong assignment {none} ({:.2} %); time per frame median {:.3} ms, p90 {:.3} ms, max {:.3} ms",

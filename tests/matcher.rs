@@ -400,3 +400,42 @@ fn hard_frames_of_the_monte_carlo_are_fixed_right() {
         assert!(result.best_score + 1 >= true_detections, "{result:?}");
     }
 }
+
+#[test]
+fn a_cold_start_on_the_edge_street_of_a_regular_grid_is_ambiguous_not_wrong() {
+    // Frame 42 of `UP_TOL_DEG=4 cargo run --release --example matcher_monte_carlo -- cold
+    // 100 3` (the sparse city: 1,060 lamps on one kerb of a regular street grid): the rig is
+    // on the city's western street, 5 m outside the landmarks' horizontal extent. The cold
+    // trials used that extent as the search area, so the truth could not be generated and a
+    // look-alike 608 m away (the grid repeats every 100 m), explaining all 10 true
+    // detections, was reported as a fix. The trials now search `rig_region` (the streets),
+    // which holds the truth; the frame is then `ambiguous` between two poses that explain
+    // every true detection, which is the right answer.
+    let mut r = rng(3);
+    let world = CityWorld::generate(&mut r, &CityConfig::sparse());
+    let db = world.landmark_db().unwrap();
+    let config = FrameConfig::default();
+    let mut trial = world.cold_trial(&mut r, &config, &db);
+    for _ in 0..42 {
+        trial = world.cold_trial(&mut r, &config, &db);
+    }
+    let truth = trial.pose.translation.vector;
+    let landmarks_only = SearchArea::over_landmarks(&db, 0.0, 1.0, 3.0).unwrap();
+    assert!(truth.x < landmarks_only.min_in_world.x, "{truth:?}");
+    let region = &trial.area;
+    assert!(
+        (0..3).all(|k| region.min_in_world[k] <= truth[k] && truth[k] <= region.max_in_world[k])
+    );
+    let detections: Vec<Detection> = trial
+        .frame
+        .detections
+        .iter()
+        .map(|b| Detection::new(Ray::try_new(Vector3::zeros(), *b).unwrap()))
+        .collect();
+    let result = match_detections(&db, &detections, region, &up4_options()).unwrap();
+    assert_eq!(result.status, MatchStatus::Ambiguous, "{result:?}");
+    assert!(result.estimate.is_none());
+    let true_detections = trial.frame.truth.iter().flatten().count();
+    assert_eq!(result.best_score, true_detections);
+    assert_eq!(result.runner_up_score, Some(true_detections));
+}

@@ -1165,17 +1165,20 @@ fn conclude(search: &mut Search, cells: usize) -> MatchResult {
         );
     }
     let mut refined: Vec<Refined> = Vec::new();
+    // Hypotheses that are runner-ups only: those that do not refine (scored as they are) and
+    // those outside the area.
     let mut unrefined: Vec<(usize, f64, Pose)> = Vec::new();
     let mut near = Vec::new();
     for h in kept.iter().take(MAX_REFINED_HYPOTHESES) {
         if refined.iter().any(|r| same_pose(&r.pose, &h.pose)) {
             continue;
         }
-        match search.refine(&h.pose) {
-            // A pose that refinement moved out of the area is not a fix, nor a runner-up.
-            Some(r) if !search.within_area(&r.pose) => {}
-            Some(r) => refined.push(r),
-            None if !search.within_area(&h.pose) => {}
+        let (pose, scored) = match search.refine(&h.pose) {
+            Some(r) if search.within_area(&r.pose) => {
+                refined.push(r);
+                continue;
+            }
+            Some(r) => (r.pose, (r.inliers, r.cost)),
             None => {
                 search.db.within(
                     &h.pose.translation.vector,
@@ -1183,9 +1186,13 @@ fn conclude(search: &mut Search, cells: usize) -> MatchResult {
                     &mut near,
                 );
                 let (inliers, cost, _) = search.score(&h.pose, &near, 1.0, 0);
-                unrefined.push((inliers, cost + (n - inliers) as f64, h.pose));
+                (h.pose, (inliers, cost + (n - inliers) as f64))
             }
-        }
+        };
+        // A pose outside the area (the prior), e.g. one that refinement moved away, cannot
+        // be the fix, but it still counts as a runner-up: if the prior is off, it may be the
+        // truth, and a look-alike inside the area must not then pass for a fix.
+        unrefined.push((scored.0, scored.1, pose));
     }
     let Some(best_index) = (0..refined.len()).min_by(|&x, &y| {
         refined[y]

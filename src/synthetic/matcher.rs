@@ -260,8 +260,26 @@ impl CityWorld {
         }
     }
 
-    /// A rig on a random street, [`RIG_HEIGHT_M`] up, random heading, pitch and roll within
-    /// ±3°.
+    /// Where [`Self::random_rig_pose`] puts the rig: the streets (up to 2 m from the kerbs)
+    /// at heights within 1 m of [`RIG_HEIGHT_M`]. This is the region of a cold start: the
+    /// landmarks' own extent misses the outer half of the streets along the city's edge when
+    /// the lamps stand on one kerb only.
+    pub fn rig_region(&self) -> Option<SearchArea> {
+        let (nx, ny) = self.config.blocks;
+        let b = self.config.block_m;
+        let lateral = self.config.street_m / 2.0 - 2.0;
+        SearchArea::try_new(
+            Vector3::new(-lateral, -lateral, RIG_HEIGHT_M - 1.0),
+            Vector3::new(
+                nx as f64 * b + lateral,
+                ny as f64 * b + lateral,
+                RIG_HEIGHT_M + 1.0,
+            ),
+        )
+    }
+
+    /// A rig on a random street (see [`Self::rig_region`]), [`RIG_HEIGHT_M`] up, random
+    /// heading, pitch and roll within ±3°.
     pub fn random_rig_pose<R: Rng + ?Sized>(&self, rng: &mut R) -> Pose {
         let (nx, ny) = self.config.blocks;
         let b = self.config.block_m;
@@ -350,7 +368,9 @@ impl CityWorld {
     ) -> Trial {
         let pose = self.random_rig_pose(rng);
         let frame = self.frame(rng, &pose, config);
-        let area = SearchArea::over_landmarks(db, 0.0, RIG_HEIGHT_M - 1.0, RIG_HEIGHT_M + 1.0)
+        let area = self
+            .rig_region()
+            .or_else(|| SearchArea::over_landmarks(db, 0.0, RIG_HEIGHT_M - 1.0, RIG_HEIGHT_M + 1.0))
             .unwrap_or_else(|| unreachable_area(&pose.translation.vector));
         Trial { pose, frame, area }
     }
