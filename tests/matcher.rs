@@ -11,6 +11,14 @@ use vgps::matcher::{
 use vgps::synthetic::matcher::{CityConfig, CityWorld, FrameConfig};
 use vgps::synthetic::{random_unit_vector, rng};
 
+/// Detections of a central rig (every ray from the rig origin) with the given bearings.
+fn central_detections(bearings: &[Vector3<f64>]) -> Vec<Detection> {
+    bearings
+        .iter()
+        .map(|b| Detection::new(Ray::try_new(Vector3::zeros(), *b).unwrap()))
+        .collect()
+}
+
 fn db_of(points: &[Vector3<f64>]) -> LandmarkDb {
     vgps::synthetic::matcher::landmark_db(points).unwrap()
 }
@@ -149,11 +157,7 @@ fn city_frames_with_a_prior_give_right_fixes_and_no_wrong_ones() {
     for _ in 0..frames {
         let pose = world.random_rig_pose(&mut g);
         let frame = world.frame(&mut g, &pose, &config);
-        let detections: Vec<Detection> = frame
-            .detections
-            .iter()
-            .map(|b| Detection::new(Ray::try_new(Vector3::zeros(), *b).unwrap()))
-            .collect();
+        let detections: Vec<Detection> = central_detections(&frame.detections);
         let offset = Vector3::new(17.0, -12.0, 0.0); // 20.8 m from the truth
         let area = SearchArea::around(&(pose.translation.vector + offset), 30.0, 1.0).unwrap();
         let r = match_detections(&db, &detections, &area, &options).unwrap();
@@ -191,11 +195,7 @@ fn a_known_vertical_gives_the_same_right_fixes() {
     for _ in 0..frames {
         let pose = world.random_rig_pose(&mut g);
         let frame = world.frame(&mut g, &pose, &config);
-        let detections: Vec<Detection> = frame
-            .detections
-            .iter()
-            .map(|b| Detection::new(Ray::try_new(Vector3::zeros(), *b).unwrap()))
-            .collect();
+        let detections: Vec<Detection> = central_detections(&frame.detections);
         let area = SearchArea::around(
             &(pose.translation.vector + Vector3::new(-20.0, 9.0, 0.0)),
             30.0,
@@ -222,11 +222,7 @@ fn a_known_vertical_gives_the_same_right_fixes() {
     };
     let pose = world.random_rig_pose(&mut g);
     let frame = world.frame(&mut g, &pose, &config);
-    let detections: Vec<Detection> = frame
-        .detections
-        .iter()
-        .map(|b| Detection::new(Ray::try_new(Vector3::zeros(), *b).unwrap()))
-        .collect();
+    let detections: Vec<Detection> = central_detections(&frame.detections);
     let area = SearchArea::around(&pose.translation.vector, 30.0, 1.0).unwrap();
     assert_eq!(
         match_detections(&db, &detections, &area, &bad),
@@ -264,11 +260,7 @@ fn lamps_among_many_other_lights_are_found_and_seen_twice() {
     for _ in 0..frames {
         let pose = world.random_rig_pose(&mut g);
         let frame = world.frame(&mut g, &pose, &config);
-        let mut detections: Vec<Detection> = frame
-            .detections
-            .iter()
-            .map(|b| Detection::new(Ray::try_new(Vector3::zeros(), *b).unwrap()))
-            .collect();
+        let mut detections: Vec<Detection> = central_detections(&frame.detections);
         let mut truth = frame.truth.clone();
         // 36 other lights (windows, cars) at the heights of the landmarks, so that the
         // known vertical does not tell them apart: 75 % false detections.
@@ -374,12 +366,7 @@ fn hard_frames_of_the_monte_carlo_are_fixed_right() {
         for _ in 0..index {
             trial = world.prior_trial(&mut r, &config);
         }
-        let detections: Vec<Detection> = trial
-            .frame
-            .detections
-            .iter()
-            .map(|b| Detection::new(Ray::try_new(Vector3::zeros(), *b).unwrap()))
-            .collect();
+        let detections: Vec<Detection> = central_detections(&trial.frame.detections);
         let result = match_detections(&db, &detections, &trial.area, &up4_options()).unwrap();
         assert_eq!(
             result.status,
@@ -426,12 +413,7 @@ fn a_cold_start_on_the_edge_street_of_a_regular_grid_is_ambiguous_not_wrong() {
     assert!(
         (0..3).all(|k| region.min_in_world[k] <= truth[k] && truth[k] <= region.max_in_world[k])
     );
-    let detections: Vec<Detection> = trial
-        .frame
-        .detections
-        .iter()
-        .map(|b| Detection::new(Ray::try_new(Vector3::zeros(), *b).unwrap()))
-        .collect();
+    let detections: Vec<Detection> = central_detections(&trial.frame.detections);
     let result = match_detections(&db, &detections, region, &up4_options()).unwrap();
     assert_eq!(result.status, MatchStatus::Ambiguous, "{result:?}");
     assert!(result.estimate.is_none());
