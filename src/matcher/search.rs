@@ -1205,25 +1205,6 @@ fn conclude(search: &mut Search, cells: usize) -> MatchResult {
             "the best hypothesis did not refine".to_string(),
         );
     };
-    if std::env::var("VGPS_DEBUG_CONCLUDE").is_ok() {
-        for r in &refined {
-            eprintln!(
-                "refined {:?} inl {} cost {:.3} rot {:?}",
-                r.pose.translation.vector.as_slice(),
-                r.inliers,
-                r.cost,
-                r.pose.rotation.scaled_axis().as_slice()
-            );
-        }
-        for u in &unrefined {
-            eprintln!(
-                "unrefined {:?} inl {} cost {:.3}",
-                u.2.translation.vector.as_slice(),
-                u.0,
-                u.1
-            );
-        }
-    }
     let best = refined.swap_remove(best_index);
     let (pose, best_score) = (best.pose, best.inliers);
     // The runner-up: the distinct pose of least cost (a hypothesis that does not refine is
