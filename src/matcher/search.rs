@@ -326,8 +326,7 @@ impl Search<'_> {
     /// Whether a pose lies in the search area (widened by the position margin). The area is
     /// the prior: a hypothesis outside it, e.g. one that refinement moved away, is not a fix.
     fn within_area(&self, pose: &Pose) -> bool {
-        let t = pose.translation.vector;
-        (0..3).all(|a| t[a] >= self.area_min[a] && t[a] <= self.area_max[a])
+        in_box(&pose.translation.vector, &self.area_min, &self.area_max)
     }
 
     /// With a known vertical: `det[up, b_a, b_b]` and how far the true value may be from it
@@ -652,6 +651,11 @@ fn det_of_bearings(
     let wobble = 2.0 * noise + noise * noise;
     let tilt = 2.0 * (0.5 * tol.min(std::f64::consts::PI)).sin();
     (up.dot(&cross), tilt * (cross.norm() + wobble) + wobble)
+}
+
+/// Whether `t` lies in the axis-aligned box `[min, max]` (bounds included).
+fn in_box(t: &Vector3<f64>, min: &Vector3<f64>, max: &Vector3<f64>) -> bool {
+    (0..3).all(|a| t[a] >= min[a] && t[a] <= max[a])
 }
 
 /// The range of `det[z, uᵢ(x), uⱼ(x)]` (`u`: unit directions from `x` to the landmarks) over
@@ -1064,9 +1068,7 @@ pub(super) fn run(
                         solves += 1;
                         let start = solved_poses.len();
                         for pose in p3p(&bearings, &points) {
-                            let t = pose.translation.vector;
-                            let inside =
-                                (0..3).all(|a| t[a] >= reach_min[a] && t[a] <= reach_max[a]);
+                            let inside = in_box(&pose.translation.vector, &reach_min, &reach_max);
                             let upright =
                                 up_min_z.is_none_or(|(u, min_z)| (pose.rotation * u).z >= min_z);
                             if inside && upright {

@@ -548,6 +548,14 @@ fn residual_value(direction: &Vector3<f64>, v: &Vector3<f64>) -> Option<Vector2<
     })
 }
 
+/// The ray's direction scaled to unit length, or `None` when its norm is too small or not
+/// finite.
+#[inline]
+fn unit_direction(ray: &Ray) -> Option<Vector3<f64>> {
+    let norm = ray.direction.norm();
+    (norm > MIN_DIRECTION_NORM && norm.is_finite()).then(|| ray.direction / norm)
+}
+
 /// The residual of [`observation`] alone (see [`residual_value`]).
 #[inline]
 fn observation_residual(
@@ -556,11 +564,7 @@ fn observation_residual(
     ray: &Ray,
     point: &Vector3<f64>,
 ) -> Option<Vector2<f64>> {
-    let norm = ray.direction.norm();
-    if !(norm > MIN_DIRECTION_NORM && norm.is_finite()) {
-        return None;
-    }
-    let direction = ray.direction / norm;
+    let direction = unit_direction(ray)?;
     let v = rig_from_world * (point - position) - ray.origin;
     residual_value(&direction, &v)
 }
@@ -574,11 +578,7 @@ fn observation(
     ray: &Ray,
     point: &Vector3<f64>,
 ) -> Option<(Vector2<f64>, Matrix2x6, f64)> {
-    let norm = ray.direction.norm();
-    if !(norm > MIN_DIRECTION_NORM && norm.is_finite()) {
-        return None;
-    }
-    let direction = ray.direction / norm;
+    let direction = unit_direction(ray)?;
     let q = point - position;
     let v = rig_from_world * q - ray.origin;
     let (r, dr_dv, angle) = residual(&direction, &v)?;
