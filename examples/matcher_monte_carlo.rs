@@ -70,6 +70,9 @@ fn main() {
     let mut coincident = 0usize;
     let gate = options.inlier_threshold_sigmas * options.sigma_rad;
     let mut times = Vec::with_capacity(frames);
+    // Over the fixes: true detections (of a landmark in the database) and those linked to
+    // their landmark (the rest are left unlinked, or wrongly linked).
+    let (mut true_detections, mut true_links) = (0usize, 0usize);
     let from: usize = std::env::var("FROM")
         .ok()
         .and_then(|s| s.parse().ok())
@@ -109,8 +112,32 @@ fn main() {
                 .runner_up_pose
                 .as_ref()
                 .map(|p| (p.translation.vector - pose.translation.vector).norm());
+            // Each wrong link: the detection's true landmark (or none: a false detection),
+            // and its residual in σ under the estimated and under the true pose.
+            let details: Vec<String> = result
+                .assignment
+                .iter()
+                .zip(&frame.truth)
+                .zip(&frame.detections)
+                .filter(|((a, t), _)| a.is_some() && a != t)
+                .filter_map(|((a, t), bearing)| {
+                    let p = db.get((*a)?)?.position_in_world;
+                    let sigmas = |pose: &vgps::geometry::Pose| {
+                        let predicted =
+                            pose.inverse_transform_vector(&(p - pose.translation.vector));
+                        vgps::geometry::angle_between(&predicted, bearing) / options.sigma_rad
+                    };
+                    let estimated = result.estimate.as_ref().map(|e| sigmas(&e.world_from_rig));
+                    Some(format!(
+                        "[{} {:.1}σ est, {:.1}σ true]",
+                        if t.is_some() { "true det" } else { "false det" },
+                        estimated.unwrap_or(f64::NAN),
+                        sigmas(&pose)
+                    ))
+                })
+                .collect();
             println!(
-                "frame {frame_index}: {} true {} best {} runner {:?} (runner-up {:?} m from the truth) cells {} hyp {} err {:?} wrong_links {} {:.1} ms {}",
+                "frame {frame_index}: {} true {} best {} runner {:?} (runner-up {:?} m from the truth) cells {} hyp {} err {:?} wrong_links {} {} {:.1} ms {}",
                 result.status,
                 true_count,
                 result.best_score,
@@ -120,6 +147,7 @@ fn main() {
                 result.hypotheses,
                 err,
                 wrong_links,
+                details.join(" "),
                 times.last().unwrap() * 1e3,
                 result.message
             );
@@ -127,6 +155,13 @@ fn main() {
         match result.status {
             MatchStatus::Ok => {
                 let estimate = result.estimate.expect("ok has an estimate");
+                true_detections += frame.truth.iter().flatten().count();
+                true_links += result
+                    .assignment
+                    .iter()
+                    .zip(&frame.truth)
+                    .filter(|(a, t)| t.is_some() && a == t)
+                    .count();
                 let error =
                     (estimate.world_from_rig.translation.vector - pose.translation.vector).norm();
                 let assignment_right = result
@@ -171,13 +206,14 @@ fn main() {
     }
     let pct = |x: usize| 100.0 * x as f64 / frames as f64;
     println!(
-        "{mode}: {} landmarks, {frames} frames: right {right} ({:.2} %), right pose with a coincident false detection linked {coincident} ({:.2} %), wrong fixes {wrong} ({:.3} %), ambiguous {ambiguous} ({:.2} %), other no-fix/partly-wrong assignment {none} ({:.2} %); time per frame median {:.3} ms, p90 {:.3} ms, max {:.3} ms",
+        "{mode}: {} landmarks, {frames} frames: right {right} ({:.2} %), right pose with a coincident false detection linked {coincident} ({:.2} %), wrong fixes {wrong} ({:.3} %), ambiguous {ambiguous} ({:.2} %), other no-fix/partly-wrong assignment {none} ({:.2} %); true detections linked in the fixes {true_links} of {true_detections} ({:.2} %); time per frame median {:.3} ms, p90 {:.3} ms, max {:.3} ms",
         db.len(),
         pct(right),
         pct(coincident),
         pct(wrong),
         pct(ambiguous),
         pct(none),
+        100.0 * true_links as f64 / true_detections.max(1) as f64,
         times[frames / 2] * 1e3,
         times[frames * 9 / 10] * 1e3,
         times[frames - 1] * 1e3,

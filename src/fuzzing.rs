@@ -637,12 +637,18 @@ pub fn matcher(data: &[u8]) {
         up_in_rig: input.up.map(|(u, t)| (vec3(&u), t.get())),
         min_extensions: c[5] % 4,
         max_rounds: 1 + (c[5] / 4) % 4,
+        // 0, 0.4995 or 0.999.
+        min_link_probability: ((c[5] / 16) % 3) as f64 * 0.4995,
     };
     let Ok(result) = match_detections(&db, &detections, &area, &options) else {
         return;
     };
     assert_eq!(result.assignment.len(), detections.len());
     assert!(result.assignment.iter().flatten().all(|&k| k < db.len()));
+    for (a, p) in result.assignment.iter().zip(&result.link_probability) {
+        assert_eq!(a.is_some(), p.is_some());
+        assert!(p.is_none_or(|p| (options.min_link_probability..=1.0).contains(&p)));
+    }
     assert_eq!(result.estimate.is_some(), result.status == MatchStatus::Ok);
     if let Some(e) = &result.estimate {
         assert_pose(&e.world_from_rig, "matcher pose");

@@ -127,7 +127,18 @@ fn frames_without_ids_are_matched_around_a_prior() {
     }
     assert!(ids[10].is_null() && ids[11].is_null());
     assert_eq!(line["best_score"], 10);
+    assert_eq!(line["inliers"], 10);
     assert!(line["runner_up_score"].as_u64().is_none_or(|r| r + 3 <= 10));
+    // Every link is sure; the stray lights have no probability.
+    let probabilities = line["link_probability"].as_array().unwrap();
+    assert_eq!(probabilities.len(), 12);
+    for p in &probabilities[..10] {
+        assert!(
+            p.as_f64().is_some_and(|p| (0.999..=1.0).contains(&p)),
+            "{line}"
+        );
+    }
+    assert!(probabilities[10].is_null() && probabilities[11].is_null());
     assert_eq!(lines[1]["status"], "too_few_detections");
     assert!(lines[1]["lat"].is_null());
 

@@ -356,9 +356,24 @@ fn hard_frames_of_the_monte_carlo_are_fixed_right() {
     //   (`Rotation3::angle` was NaN) and made the frame `ambiguous`;
     // - seed 7, frame 6382: a wrong fix, 25 m off: a repetitive look-alike with 9 inliers
     //   was "confirmed" by two triples sharing the same false detection before any
-    //   triple gave the true pose; confirmations now need disjoint triples.
+    //   triple gave the true pose; confirmations now need disjoint triples;
+    // - seed 42, frames 1168 and 1327 and 6537: a false detection linked to a landmark
+    //   (3.8σ from it under the fix; 1.4σ and 4.0σ, but 24σ and 32σ under the true pose:
+    //   the false link had pulled the pose 10 and 18 cm towards a nearby landmark). Links
+    //   are now kept only when their probability given the other links is ≥ 0.999;
+    // - seed 42, frame 1036: 14 inliers against a look-alike one lamp spacing along the
+    //   street with 13 (log odds 10): was `ambiguous`; the evidence is now weighed when the
+    //   best is one inlier short of the margin.
     let config = FrameConfig::default();
-    for (seed, index) in [(42u64, 351usize), (42, 1476), (7, 6382)] {
+    for (seed, index) in [
+        (42u64, 351usize),
+        (42, 1036),
+        (42, 1168),
+        (42, 1327),
+        (42, 1476),
+        (42, 6537),
+        (7, 6382),
+    ] {
         let mut r = rng(seed);
         let world = CityWorld::generate(&mut r, &CityConfig::default());
         let db = world.landmark_db().unwrap();
@@ -385,7 +400,55 @@ fn hard_frames_of_the_monte_carlo_are_fixed_right() {
         }
         let true_detections = trial.frame.truth.iter().flatten().count();
         assert!(result.best_score + 1 >= true_detections, "{result:?}");
+        for (a, p) in result.assignment.iter().zip(&result.link_probability) {
+            assert_eq!(a.is_some(), p.is_some());
+            assert!(p.is_none_or(|p| (0.999..=1.0).contains(&p)), "{p:?}");
+        }
     }
+}
+
+#[test]
+fn every_gate_inlier_is_linked_when_no_link_probability_is_asked() {
+    // Frame 1168 of seed 42 (see above): with `min_link_probability` 0 the matcher links
+    // every detection within the inlier gate, including the false detection 3.8σ from a
+    // landmark the sure links leave out.
+    let config = FrameConfig::default();
+    let mut r = rng(42);
+    let world = CityWorld::generate(&mut r, &CityConfig::default());
+    let db = world.landmark_db().unwrap();
+    let mut trial = world.prior_trial(&mut r, &config);
+    for _ in 0..1168 {
+        trial = world.prior_trial(&mut r, &config);
+    }
+    let detections = central_detections(&trial.frame.detections);
+    let wrong_links = |options: &MatchOptions| {
+        let result = match_detections(&db, &detections, &trial.area, options).unwrap();
+        assert_eq!(result.status, MatchStatus::Ok, "{result:?}");
+        let links = result.assignment.iter().flatten().count();
+        let wrong = result
+            .assignment
+            .iter()
+            .zip(&trial.frame.truth)
+            .filter(|(a, t)| a.is_some() && a != t)
+            .count();
+        (links, wrong)
+    };
+    let (all_links, all_wrong) = wrong_links(&MatchOptions {
+        min_link_probability: 0.0,
+        ..up4_options()
+    });
+    let (sure_links, sure_wrong) = wrong_links(&up4_options());
+    assert_eq!((all_wrong, sure_wrong), (1, 0));
+    assert!(
+        sure_links < all_links && sure_links >= 13,
+        "{sure_links} {all_links}"
+    );
+    // Out of range.
+    let bad = MatchOptions {
+        min_link_probability: 1.5,
+        ..up4_options()
+    };
+    assert!(match_detections(&db, &detections, &trial.area, &bad).is_err());
 }
 
 #[test]

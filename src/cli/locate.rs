@@ -77,6 +77,9 @@ pub struct FrameReport {
     /// Matched frames: inliers of the best hypothesis distinct from the best (`null` when
     /// there was none, and for frames with landmark ids).
     pub runner_up_score: Option<usize>,
+    /// Matched frames with a fix: per observation row, the probability of its link given
+    /// the others (`null` where `landmarks` is `null`); `null` for other frames.
+    pub link_probability: Option<Vec<Option<f64>>>,
 }
 
 impl FrameReport {
@@ -100,6 +103,7 @@ impl FrameReport {
             landmarks: vec![None; observations],
             best_score: None,
             runner_up_score: None,
+            link_probability: None,
         }
     }
 }
@@ -445,6 +449,7 @@ fn fix_report(
         landmarks,
         best_score: None,
         runner_up_score: None,
+        link_probability: None,
     }
 }
 
@@ -509,9 +514,10 @@ fn matched_report(
                 &e.world_from_rig,
                 &e.covariance,
                 e.rms_residual_rad,
-                result.best_score,
+                result.assignment.iter().flatten().count(),
                 ids,
             );
+            r.link_probability = Some(result.link_probability.clone());
             if r.status != MatchStatus::Ok.as_str() {
                 r.status = MatchStatus::NoMatch.as_str().to_string();
             }

@@ -125,6 +125,25 @@ pub const DEFAULT_MIN_INLIERS: usize = 6;
 /// fix, against 0.8 % more frames refused as ambiguous with 3 (docs/matcher.md).
 pub const DEFAULT_AMBIGUITY_MARGIN: usize = 2;
 
+/// Default [`MatchOptions::min_link_probability`]: a link is reported when it is at least
+/// 999 times as likely as a false detection or another landmark.
+pub const DEFAULT_MIN_LINK_PROBABILITY: f64 = 0.999;
+
+/// A best hypothesis one inlier short of the ambiguity margin is still the fix when its
+/// likelihood ratio against its close rivals together (the sum of their likelihoods) is at
+/// least `e^DECISIVE_LOG_ODDS` (10⁴): the extra inlier is a detection close to its
+/// landmark's direction, which under a rival would be a false detection lining up by
+/// chance (docs/matcher.md, "Integrity").
+pub const DECISIVE_LOG_ODDS: f64 = 9.210_340_371_976_184;
+
+/// Floor of the detection probability of a landmark in range in the link model (the
+/// landmarks in range include hidden ones, so the ratio of inliers to them is low).
+pub const MIN_DETECTION_PROBABILITY: f64 = 0.05;
+
+/// A link whose leverage leaves less than this of `det(I − H)` determines the pose alone
+/// and cannot be checked by the others: its probability is 0.
+pub const MIN_LINK_LEVERAGE_GAP: f64 = 1e-6;
+
 /// Default number of well-spread detections from which the detection triples are drawn.
 pub const DEFAULT_MAX_CORE_DETECTIONS: usize = 10;
 
@@ -303,6 +322,13 @@ pub struct MatchOptions {
     /// `max_core_detections · CORE_GROWTH^r` detections. 1 keeps the first core only (fast,
     /// but blind when fewer than three of its detections are true).
     pub max_rounds: usize,
+    /// A detection is linked to a landmark only when the probability of the link, given
+    /// every other link of the fix, is at least this (in `[0, 1]`; 0 links every inlier).
+    /// The probability weighs the detection's residual under the pose fitted to the other
+    /// links against the density of the frame's false detections and of the other
+    /// landmarks in the gate (docs/matcher.md, "Integrity"). Dropped links do not count
+    /// towards the fix, which is refined again without them.
+    pub min_link_probability: f64,
 }
 
 impl Default for MatchOptions {
@@ -321,6 +347,7 @@ impl Default for MatchOptions {
             up_in_rig: None,
             min_extensions: DEFAULT_MIN_EXTENSIONS,
             max_rounds: DEFAULT_MAX_ROUNDS,
+            min_link_probability: DEFAULT_MIN_LINK_PROBABILITY,
         }
     }
 }
@@ -387,6 +414,9 @@ pub struct MatchResult {
     /// Per detection (input order): the index of its landmark in the [`LandmarkDb`] (`None`:
     /// an outlier, or no fix).
     pub assignment: Vec<Option<usize>>,
+    /// Per detection: the probability of its link given every other link of the fix
+    /// (present exactly where `assignment` is; see [`MatchOptions::min_link_probability`]).
+    pub link_probability: Vec<Option<f64>>,
     /// Inliers of the best refined hypothesis (0 when there was none).
     pub best_score: usize,
     /// Inliers of the best refined hypothesis whose pose is distinct from the best's
@@ -407,6 +437,7 @@ impl MatchResult {
             message: message.into(),
             estimate: None,
             assignment: vec![None; n],
+            link_probability: vec![None; n],
             best_score: 0,
             runner_up_score: None,
             runner_up_pose: None,

@@ -2,16 +2,18 @@
 //! refinement and the runner-up.
 
 use super::{
-    CORE_GROWTH, DISTINCT_POSITION_M, DISTINCT_ROTATION_RAD, DUPLICATE_ANGLE_RAD, Detection,
-    HYPOTHESIS_THRESHOLD_FACTOR, LandmarkDb, MAX_CELLS, MAX_KEPT_HYPOTHESES,
-    MAX_REFINED_HYPOTHESES, MIN_TRIPLE_ANGLE_RAD, MatchError, MatchEstimate, MatchOptions,
-    MatchResult, MatchStatus, REFINE_PASSES, STOP_CONFIRMATIONS, STOP_MIN_INLIER_FRACTION,
-    SearchArea, UP_CHECK_MARGIN_RAD,
+    CORE_GROWTH, DECISIVE_LOG_ODDS, DISTINCT_POSITION_M, DISTINCT_ROTATION_RAD,
+    DUPLICATE_ANGLE_RAD, Detection, HYPOTHESIS_THRESHOLD_FACTOR, LandmarkDb, MAX_CELLS,
+    MAX_KEPT_HYPOTHESES, MAX_REFINED_HYPOTHESES, MIN_DETECTION_PROBABILITY, MIN_LINK_LEVERAGE_GAP,
+    MIN_TRIPLE_ANGLE_RAD, MatchError, MatchEstimate, MatchOptions, MatchResult, MatchStatus,
+    REFINE_PASSES, STOP_CONFIRMATIONS, STOP_MIN_INLIER_FRACTION, SearchArea, UP_CHECK_MARGIN_RAD,
 };
 use crate::geometry::{Pose, Ray, angle_between, rotation_angle, try_unit};
 use crate::solvers::p3p;
-use crate::solvers::refine_pose::{RefineOptions, refine_pose_with_sigmas};
-use nalgebra::{Matrix6, Vector3};
+use crate::solvers::refine_pose::{
+    RefineOptions, RefinedPose, angular_residual, refine_pose_with_sigmas,
+};
+use nalgebra::{Matrix2, Matrix6, Vector3};
 use rand::{RngExt, SeedableRng};
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
@@ -112,6 +114,16 @@ struct Refined {
     assignment: Vec<Option<usize>>,
 }
 
+/// What a fix says about the frame's detections (see [`Search::detection_model`]).
+struct DetectionModel {
+    /// False detections per steradian.
+    clutter_per_sr: f64,
+    /// Probability that a landmark in range is detected.
+    detection_probability: f64,
+    /// The landmarks in range of the fix.
+    near: Vec<usize>,
+}
+
 /// A search cell: its candidates seen from the centre and its lazily built pair tables.
 struct CellData {
     centre: Vector3<f64>,
@@ -186,6 +198,9 @@ fn validate(detections: &[Detection], options: &MatchOptions) -> Result<(), Matc
     }
     if options.ambiguity_margin < 1 {
         return Err(MatchError::InvalidOption("ambiguity_margin"));
+    }
+    if !(0.0..=1.0).contains(&options.min_link_probability) {
+        return Err(MatchError::InvalidOption("min_link_probability"));
     }
     if options.max_rounds == 0 {
         return Err(MatchError::InvalidOption("max_rounds"));
@@ -555,6 +570,139 @@ impl Search<'_> {
             .sort_by(|x, y| y.inliers.cmp(&x.inliers).then(x.cost.total_cmp(&y.cost)));
     }
 
+    /// The effective bearing σ of landmark `l` at `range` metres: the bearing noise and the
+    /// survey σ seen from that range, radians.
+    fn sigma_of(&self, l: &super::DbLandmark, range: f64) -> f64 {
+        (self.options.sigma_rad.powi(2) + (l.sigma_m / range.max(1e-3)).powi(2)).sqrt()
+    }
+
+    /// Refines `pose` on the links of `assignment` (σ inflated by the survey σ); `None` with
+    /// fewer than four links or when the refinement fails.
+    fn fit(&self, pose: &Pose, assignment: &[Option<usize>]) -> Option<RefinedPose> {
+        let mut rays: Vec<Ray> = Vec::new();
+        let mut points = Vec::new();
+        let mut sigmas = Vec::new();
+        for (d, a) in assignment.iter().enumerate() {
+            if let Some(index) = *a {
+                let l = &self.db.landmarks()[index];
+                let range = (l.position_in_world - pose.translation.vector).norm();
+                rays.push(self.detections[d].ray);
+                points.push(l.position_in_world);
+                sigmas.push(self.sigma_of(l, range));
+            }
+        }
+        if rays.len() < 4 {
+            return None;
+        }
+        let options = RefineOptions {
+            sigma_rad: self.options.sigma_rad,
+            accept_unconverged: true,
+            ..RefineOptions::default()
+        };
+        refine_pose_with_sigmas(pose, &rays, &points, &sigmas, &options).ok()
+    }
+
+    /// The detection model of a fix: false detections per steradian (those the fix does not
+    /// explain, at least one, spread over the sphere) and the probability that a landmark in
+    /// range is detected (inliers over landmarks in range, at least
+    /// [`MIN_DETECTION_PROBABILITY`]).
+    fn detection_model(&self, best: &Refined) -> DetectionModel {
+        let n = self.detections.len();
+        let mut near = Vec::new();
+        self.db.within(
+            &best.pose.translation.vector,
+            self.options.visibility_range_m,
+            &mut near,
+        );
+        DetectionModel {
+            clutter_per_sr: n.saturating_sub(best.inliers).max(1) as f64
+                / (4.0 * std::f64::consts::PI),
+            detection_probability: (best.inliers as f64 / near.len().max(1) as f64)
+                .clamp(MIN_DETECTION_PROBABILITY, 1.0),
+            near,
+        }
+    }
+
+    /// The log-likelihood ratio of a hypothesis with `inliers` inliers and truncated cost
+    /// `cost` (see [`Refined::cost`]) against "every detection is false": each inlier adds
+    /// `ln(P_d / (c · 2πσ²)) − r²/(2σ²)` (the Gaussian bearing of a detected landmark against
+    /// false detections of density `c` per steradian), with `Σ r²/σ²` recovered from the
+    /// cost (in units of the squared gate).
+    fn log_evidence(&self, model: &DetectionModel, inliers: usize, cost: f64) -> f64 {
+        let sigma = self.options.sigma_rad;
+        let per_inlier = (model.detection_probability
+            / (model.clutter_per_sr * 2.0 * std::f64::consts::PI * sigma * sigma))
+            .ln();
+        let gate = self.options.inlier_threshold_sigmas;
+        let outliers = self.detections.len().saturating_sub(inliers) as f64;
+        let chi2 = gate * gate * (cost - outliers).max(0.0);
+        inliers as f64 * per_inlier - 0.5 * chi2
+    }
+
+    /// The probability of each link of a fix given every other link (`None` where there is
+    /// no link).
+    ///
+    /// Link `i` (residual `rᵢ`, a 2-vector; effective σᵢ) is weighed by its predictive
+    /// density under the pose fitted to the *other* links: with the leverage
+    /// `Hᵢ = Jᵢ Σ Jᵢᵀ / σᵢ²` (Σ the fix's covariance, which includes link `i`), the deleted
+    /// residual is `(I − Hᵢ)⁻¹ rᵢ` with covariance `σᵢ² (I − Hᵢ)⁻¹`, so its density is
+    /// `fᵢ = √det(I − Hᵢ) / (2πσᵢ²) · exp(−rᵢᵀ (I − Hᵢ)⁻¹ rᵢ / (2σᵢ²))`. A false detection
+    /// that pulled the pose towards a nearby landmark has a small residual but a large
+    /// leverage, and so a small density. The alternatives are a false detection (density
+    /// `c` per steradian) and every other landmark within the gate of the detection (their
+    /// own densities `fₖ`): `P = P_d·fᵢ / (c + P_d·(fᵢ + Σₖ fₖ))`.
+    fn link_probabilities(&self, best: &Refined, model: &DetectionModel) -> Vec<Option<f64>> {
+        let pose = &best.pose;
+        let two_pi = 2.0 * std::f64::consts::PI;
+        let gate2 = self.options.inlier_threshold_sigmas.powi(2);
+        let p = model.detection_probability;
+        best.assignment
+            .iter()
+            .enumerate()
+            .map(|(d, a)| {
+                let index = (*a)?;
+                let ray = &self.detections[d].ray;
+                let l = &self.db.landmarks()[index];
+                let range = (l.position_in_world - pose.translation.vector).norm();
+                let sigma2 = self.sigma_of(l, range).powi(2);
+                let Some((r, j)) = angular_residual(pose, ray, &l.position_in_world) else {
+                    return Some(0.0);
+                };
+                let rest = Matrix2::identity() - j * best.covariance * j.transpose() / sigma2;
+                let det = rest.determinant();
+                let own = match rest.try_inverse() {
+                    Some(inverse) if det > MIN_LINK_LEVERAGE_GAP => {
+                        det.sqrt() / (two_pi * sigma2)
+                            * (-0.5 * r.dot(&(inverse * r)) / sigma2).exp()
+                    }
+                    // The pose is (nearly) determined by this link alone: it cannot be checked.
+                    _ => 0.0,
+                };
+                let mut others = 0.0;
+                for &k in &model.near {
+                    if k == index {
+                        continue;
+                    }
+                    let other = &self.db.landmarks()[k];
+                    let range_k = (other.position_in_world - pose.translation.vector).norm();
+                    let sigma_k2 = self.sigma_of(other, range_k).powi(2);
+                    if let Some((rk, _)) = angular_residual(pose, ray, &other.position_in_world) {
+                        let chi2 = rk.norm_squared() / sigma_k2;
+                        if chi2 <= gate2 {
+                            others += (-0.5 * chi2).exp() / (two_pi * sigma_k2);
+                        }
+                    }
+                }
+                let probability = p * own / (model.clutter_per_sr + p * (own + others));
+                Some(if probability.is_finite() {
+                    probability
+                } else {
+                    0.0
+                })
+            })
+            .collect()
+    }
+
     /// Refines a pose with its inliers and re-scores it against every landmark in range.
     fn refine(&mut self, start: &Pose) -> Option<Refined> {
         let mut pose = *start;
@@ -569,31 +717,7 @@ impl Search<'_> {
             );
             let (_, _, assignment) = self.score(&pose, &near.clone(), factor, 0);
             factor = 1.0;
-            let mut rays: Vec<Ray> = Vec::new();
-            let mut points = Vec::new();
-            let mut sigmas = Vec::new();
-            for (d, a) in assignment.iter().enumerate() {
-                if let Some(index) = *a {
-                    let l = &self.db.landmarks()[index];
-                    let range = (l.position_in_world - pose.translation.vector)
-                        .norm()
-                        .max(1e-3);
-                    rays.push(self.detections[d].ray);
-                    points.push(l.position_in_world);
-                    sigmas.push(
-                        (self.options.sigma_rad.powi(2) + (l.sigma_m / range).powi(2)).sqrt(),
-                    );
-                }
-            }
-            if rays.len() < 4 {
-                return None;
-            }
-            let options = RefineOptions {
-                sigma_rad: self.options.sigma_rad,
-                accept_unconverged: true,
-                ..RefineOptions::default()
-            };
-            let refined = refine_pose_with_sigmas(&pose, &rays, &points, &sigmas, &options).ok()?;
+            let refined = self.fit(&pose, &assignment)?;
             pose = refined.world_from_rig;
             self.db.within(
                 &pose.translation.vector,
@@ -1222,6 +1346,7 @@ fn conclude(search: &mut Search, cells: usize) -> MatchResult {
         message: String::new(),
         estimate: None,
         assignment: vec![None; n],
+        link_probability: vec![None; n],
         best_score,
         runner_up_score: runner_up.map(|r| r.0),
         runner_up_pose: runner_up.map(|r| r.2),
@@ -1236,21 +1361,76 @@ fn conclude(search: &mut Search, cells: usize) -> MatchResult {
         );
         return result;
     }
+    let model = search.detection_model(&best);
     if let Some((score, _, _)) = runner_up
         && score + options.ambiguity_margin > best_score
     {
-        result.status = MatchStatus::Ambiguous;
-        result.message = format!(
-            "two distinct poses with {best_score} and {score} inliers (margin {} needed)",
-            options.ambiguity_margin
-        );
-        return result;
+        // One inlier short of the margin is enough when the evidence is decisive: the
+        // likelihood ratio of the best against all its close rivals together (each inlier
+        // weighed by its residual against the density of false detections; a sum over the
+        // rivals, since each is a chance for a coincidence) is at least e^DECISIVE_LOG_ODDS.
+        let rivals: Vec<f64> = refined
+            .iter()
+            .map(|r| (r.inliers, r.cost, r.pose))
+            .chain(unrefined.iter().copied())
+            .filter(|(s, _, p)| s + options.ambiguity_margin > best_score && !same_pose(p, &pose))
+            .map(|(s, c, _)| search.log_evidence(&model, s, c))
+            .collect();
+        let top = rivals.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let rivals_evidence = top + rivals.iter().map(|e| (e - top).exp()).sum::<f64>().ln();
+        let odds = search.log_evidence(&model, best_score, best.cost) - rivals_evidence;
+        let decisive = best_score > score
+            && best_score + 1 >= score + options.ambiguity_margin
+            && odds >= DECISIVE_LOG_ODDS;
+        if !decisive {
+            result.status = MatchStatus::Ambiguous;
+            result.message = format!(
+                "two distinct poses with {best_score} and {score} inliers (margin {} needed; log odds {odds:.1})",
+                options.ambiguity_margin
+            );
+            return result;
+        }
     }
-    result.assignment = best.assignment;
+    // Links: only those whose probability given the others is high enough; when some are
+    // dropped, the pose is refined again on the rest.
+    let probabilities = search.link_probabilities(&best, &model);
+    let sure: Vec<Option<usize>> = best
+        .assignment
+        .iter()
+        .zip(&probabilities)
+        .map(|(a, p)| a.filter(|_| p.is_some_and(|p| p >= options.min_link_probability)))
+        .collect();
+    let (pose, covariance, rms) = if sure == best.assignment {
+        (pose, best.covariance, best.rms)
+    } else {
+        let kept = sure.iter().flatten().count();
+        if kept < options.min_inliers {
+            result.status = MatchStatus::NoMatch;
+            result.message = format!(
+                "only {kept} of the best hypothesis's {best_score} links are certain (at least {} needed)",
+                options.min_inliers
+            );
+            return result;
+        }
+        match search.fit(&pose, &sure) {
+            Some(fit) => (fit.world_from_rig, fit.covariance, fit.rms_residual_rad),
+            None => {
+                result.status = MatchStatus::NoMatch;
+                result.message = "the certain links do not refine".to_string();
+                return result;
+            }
+        }
+    };
+    result.link_probability = sure
+        .iter()
+        .zip(&probabilities)
+        .map(|(a, p)| a.and(*p))
+        .collect();
+    result.assignment = sure;
     result.estimate = Some(MatchEstimate {
         world_from_rig: pose,
-        covariance: best.covariance,
-        rms_residual_rad: best.rms,
+        covariance,
+        rms_residual_rad: rms,
     });
     result
 }
