@@ -144,6 +144,9 @@ pub struct LocalizerOptions {
     /// Options of the mapper behind the surrogates.
     pub mapper: MapperOptions,
     /// Options of the matcher (its `sigma_rad` is replaced by the frame's median angular σ).
+    /// The default keeps every inlier link (`min_link_probability` 0): the localizer uses
+    /// only the matcher's pose, as the guess from which tracking associates the
+    /// observations again.
     pub matcher: MatchOptions,
     /// The rig's z axis is within this angle of the local vertical (radians) — true of a
     /// rig on a vehicle: the matcher then prunes by elevation. `None` for a rig that may be
@@ -165,7 +168,10 @@ impl Default for LocalizerOptions {
             widened_acquisition_interval_s: DEFAULT_WIDENED_ACQUISITION_INTERVAL_S,
             surrogates: true,
             mapper: MapperOptions::default(),
-            matcher: MatchOptions::default(),
+            matcher: MatchOptions {
+                min_link_probability: 0.0,
+                ..MatchOptions::default()
+            },
             level_tolerance_rad: Some(DEFAULT_LEVEL_TOLERANCE_RAD),
         }
     }
