@@ -129,11 +129,11 @@ pub const DEFAULT_AMBIGUITY_MARGIN: usize = 2;
 /// 999 times as likely as a false detection or another landmark.
 pub const DEFAULT_MIN_LINK_PROBABILITY: f64 = 0.999;
 
-/// A best hypothesis one inlier short of the ambiguity margin is still the fix when its
-/// likelihood ratio against its close rivals together (the sum of their likelihoods) is at
-/// least `e^DECISIVE_LOG_ODDS` (10⁴): the extra inlier is a detection close to its
-/// landmark's direction, which under a rival would be a false detection lining up by
-/// chance (docs/matcher.md, "Integrity").
+/// A best hypothesis up to two inliers short of the ambiguity margin (with the default 2:
+/// one more inlier than the runner-up, or as many) is still the fix when its likelihood
+/// ratio against its close rivals together (the sum of their likelihoods) is at least
+/// `e^DECISIVE_LOG_ODDS` (10⁴): its extra inliers are detections close to their landmarks'
+/// directions, and its residuals fit the noise far better (docs/matcher.md, step 10).
 pub const DECISIVE_LOG_ODDS: f64 = 9.210_340_371_976_184;
 
 /// Floor of the detection probability of a landmark in range in the link model (the
@@ -431,6 +431,13 @@ pub struct MatchResult {
 }
 
 impl MatchResult {
+    /// The result with no fix: `status` and its explanation (the scores stay).
+    fn refused(mut self, status: MatchStatus, message: String) -> Self {
+        self.status = status;
+        self.message = message;
+        self
+    }
+
     fn failed(status: MatchStatus, n: usize, message: impl Into<String>) -> Self {
         Self {
             status,

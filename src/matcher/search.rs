@@ -122,6 +122,10 @@ struct DetectionModel {
     detection_probability: f64,
     /// The landmarks in range of the fix.
     near: Vec<usize>,
+    /// The factor on σ² the fix's own residuals call for, at least 1: `χ² / (2k − 6)` over
+    /// its `k` inliers. Evidence from residuals is weighed with the larger σ, so that a σ
+    /// set too small does not make the comparison of two poses overconfident.
+    noise_scale: f64,
 }
 
 /// A search cell: its candidates seen from the centre and its lazily built pair tables.
@@ -614,7 +618,11 @@ impl Search<'_> {
             self.options.visibility_range_m,
             &mut near,
         );
+        let gate2 = self.options.inlier_threshold_sigmas.powi(2);
+        let chi2 = gate2 * (best.cost - n.saturating_sub(best.inliers) as f64).max(0.0);
+        let dof = (2 * best.inliers).saturating_sub(6).max(1) as f64;
         DetectionModel {
+            noise_scale: (chi2 / dof).max(1.0),
             clutter_per_sr: n.saturating_sub(best.inliers).max(1) as f64
                 / (4.0 * std::f64::consts::PI),
             detection_probability: (best.inliers as f64 / near.len().max(1) as f64)
@@ -625,17 +633,17 @@ impl Search<'_> {
 
     /// The log-likelihood ratio of a hypothesis with `inliers` inliers and truncated cost
     /// `cost` (see [`Refined::cost`]) against "every detection is false": each inlier adds
-    /// `ln(P_d / (c · 2πσ²)) − r²/(2σ²)` (the Gaussian bearing of a detected landmark against
+    /// `ln(P_d / (c · 2πs²)) − r²/(2s²)` (the Gaussian bearing of a detected landmark against
     /// false detections of density `c` per steradian), with `Σ r²/σ²` recovered from the
-    /// cost (in units of the squared gate).
+    /// cost (in units of the squared gate) and `s² = σ² ·` [`DetectionModel::noise_scale`].
     fn log_evidence(&self, model: &DetectionModel, inliers: usize, cost: f64) -> f64 {
-        let sigma = self.options.sigma_rad;
+        let variance = self.options.sigma_rad.powi(2) * model.noise_scale;
         let per_inlier = (model.detection_probability
-            / (model.clutter_per_sr * 2.0 * std::f64::consts::PI * sigma * sigma))
+            / (model.clutter_per_sr * 2.0 * std::f64::consts::PI * variance))
             .ln();
         let gate = self.options.inlier_threshold_sigmas;
         let outliers = self.detections.len().saturating_sub(inliers) as f64;
-        let chi2 = gate * gate * (cost - outliers).max(0.0);
+        let chi2 = gate * gate * (cost - outliers).max(0.0) / model.noise_scale;
         inliers as f64 * per_inlier - 0.5 * chi2
     }
 
@@ -1354,18 +1362,19 @@ fn conclude(search: &mut Search, cells: usize) -> MatchResult {
         hypotheses,
     };
     if best_score < options.min_inliers {
-        result.status = MatchStatus::NoMatch;
-        result.message = format!(
-            "the best hypothesis has {best_score} inliers (at least {} needed)",
-            options.min_inliers
+        return result.refused(
+            MatchStatus::NoMatch,
+            format!(
+                "the best hypothesis has {best_score} inliers (at least {} needed)",
+                options.min_inliers
+            ),
         );
-        return result;
     }
     let model = search.detection_model(&best);
     if let Some((score, _, _)) = runner_up
         && score + options.ambiguity_margin > best_score
     {
-        // One inlier short of the margin is enough when the evidence is decisive: the
+        // Up to two inliers short of the margin is enough when the evidence is decisive: the
         // likelihood ratio of the best against all its close rivals together (each inlier
         // weighed by its residual against the density of false detections; a sum over the
         // rivals, since each is a chance for a coincidence) is at least e^DECISIVE_LOG_ODDS.
@@ -1379,16 +1388,16 @@ fn conclude(search: &mut Search, cells: usize) -> MatchResult {
         let top = rivals.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         let rivals_evidence = top + rivals.iter().map(|e| (e - top).exp()).sum::<f64>().ln();
         let odds = search.log_evidence(&model, best_score, best.cost) - rivals_evidence;
-        let decisive = best_score > score
-            && best_score + 1 >= score + options.ambiguity_margin
-            && odds >= DECISIVE_LOG_ODDS;
+        let decisive =
+            best_score + 2 >= score + options.ambiguity_margin && odds >= DECISIVE_LOG_ODDS;
         if !decisive {
-            result.status = MatchStatus::Ambiguous;
-            result.message = format!(
-                "two distinct poses with {best_score} and {score} inliers (margin {} needed; log odds {odds:.1})",
-                options.ambiguity_margin
+            return result.refused(
+                MatchStatus::Ambiguous,
+                format!(
+                    "two distinct poses with {best_score} and {score} inliers (margin {} needed; log odds {odds:.1})",
+                    options.ambiguity_margin
+                ),
             );
-            return result;
         }
     }
     // Links: only those whose probability given the others is high enough; when some are
@@ -1405,19 +1414,21 @@ fn conclude(search: &mut Search, cells: usize) -> MatchResult {
     } else {
         let kept = sure.iter().flatten().count();
         if kept < options.min_inliers {
-            result.status = MatchStatus::NoMatch;
-            result.message = format!(
-                "only {kept} of the best hypothesis's {best_score} links are certain (at least {} needed)",
-                options.min_inliers
+            return result.refused(
+                MatchStatus::NoMatch,
+                format!(
+                    "only {kept} of the best hypothesis's {best_score} links are certain (at least {} needed)",
+                    options.min_inliers
+                ),
             );
-            return result;
         }
         match search.fit(&pose, &sure) {
             Some(fit) => (fit.world_from_rig, fit.covariance, fit.rms_residual_rad),
             None => {
-                result.status = MatchStatus::NoMatch;
-                result.message = "the certain links do not refine".to_string();
-                return result;
+                return result.refused(
+                    MatchStatus::NoMatch,
+                    "the certain links do not refine".to_string(),
+                );
             }
         }
     };
