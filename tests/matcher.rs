@@ -512,3 +512,57 @@ fn a_cold_start_with_equal_counts_is_decided_only_by_decisive_residuals() {
         assert!(a.is_none() || a == t);
     }
 }
+
+#[test]
+fn a_detection_in_the_direction_of_two_landmarks_is_not_linked() {
+    // Ten landmarks around the rig and a detection of each but the last two; then one more
+    // detection pointing at landmark 8, with landmark 9 placed 10 m farther along the same
+    // ray (0.5σ off it): the detection is equally well explained by either, so the link's
+    // probability is about one half and no link is reported. Without landmark 9 the same
+    // detection is linked, with a probability near 1.
+    let pose = Pose::new(Vector3::new(3.0, -2.0, 2.0), Vector3::new(0.0, 0.0, 0.7));
+    let options = MatchOptions {
+        sigma_rad: 0.05_f64.to_radians(),
+        up_in_rig: Some((Vector3::z(), 2.0_f64.to_radians())),
+        ..MatchOptions::default()
+    };
+    let mut points: Vec<Vector3<f64>> = (0..9)
+        .map(|k| {
+            let a = 0.7 * k as f64;
+            let range = 15.0 + 4.0 * k as f64;
+            Vector3::new(range * a.cos(), range * a.sin(), 4.0 + (k % 3) as f64 * 3.0)
+        })
+        .collect();
+    let origin = pose.translation.vector;
+    let along = (points[8] - origin).normalize();
+    let side = along.cross(&Vector3::z()).normalize();
+    let range9 = (points[8] - origin).norm() + 10.0;
+    let behind = origin + along * range9 + side * (0.5 * options.sigma_rad * range9);
+    let area = SearchArea::around(&origin, 3.0, 1.0).unwrap();
+    let mut detections = detections_of(&pose, &points[..8]);
+    detections.extend(detections_of(&pose, &points[8..9]));
+    let alone = match_detections(&db_of(&points), &detections, &area, &options).unwrap();
+    points.push(behind);
+    let twins = match_detections(&db_of(&points), &detections, &area, &options).unwrap();
+    for result in [&alone, &twins] {
+        assert_eq!(result.status, MatchStatus::Ok, "{result:?}");
+        for k in 0..8 {
+            assert_eq!(result.assignment[k], Some(k), "{result:?}");
+            assert!(result.link_probability[k].is_some_and(|p| p > 0.999));
+        }
+    }
+    assert_eq!(alone.assignment[8], Some(8));
+    assert!(alone.link_probability[8].is_some_and(|p| p > 0.999));
+    assert_eq!(twins.assignment[8], None, "{twins:?}");
+    assert_eq!(twins.link_probability[8], None);
+    assert_eq!(twins.best_score, 9);
+    // Asked for every gate inlier, the matcher links it and says how doubtful it is.
+    let every = MatchOptions {
+        min_link_probability: 0.0,
+        ..options
+    };
+    let doubtful = match_detections(&db_of(&points), &detections, &area, &every).unwrap();
+    assert_eq!(doubtful.assignment[8], Some(8));
+    let p = doubtful.link_probability[8].unwrap();
+    assert!((0.3..0.7).contains(&p), "{p}");
+}
