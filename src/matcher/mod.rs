@@ -129,6 +129,11 @@ pub const DEFAULT_AMBIGUITY_MARGIN: usize = 2;
 /// 999 times as likely as a false detection or another landmark.
 pub const DEFAULT_MIN_LINK_PROBABILITY: f64 = 0.999;
 
+/// While the least probable link of a fix has a probability below this (and below
+/// [`MatchOptions::min_link_probability`]), it is more likely wrong than right: it is
+/// dropped and the fix refined without it.
+pub const LIKELY_WRONG_LINK_PROBABILITY: f64 = 0.5;
+
 /// A best hypothesis up to two inliers short of the ambiguity margin (with the default 2:
 /// one more inlier than the runner-up, or as many) is still the fix when its likelihood
 /// ratio against its close rivals together (the sum of their likelihoods) is at least

@@ -3,10 +3,11 @@
 
 use super::{
     CORE_GROWTH, DECISIVE_LOG_ODDS, DISTINCT_POSITION_M, DISTINCT_ROTATION_RAD,
-    DUPLICATE_ANGLE_RAD, Detection, HYPOTHESIS_THRESHOLD_FACTOR, LandmarkDb, MAX_CELLS,
-    MAX_KEPT_HYPOTHESES, MAX_REFINED_HYPOTHESES, MIN_DETECTION_PROBABILITY, MIN_LINK_LEVERAGE_GAP,
-    MIN_TRIPLE_ANGLE_RAD, MatchError, MatchEstimate, MatchOptions, MatchResult, MatchStatus,
-    REFINE_PASSES, STOP_CONFIRMATIONS, STOP_MIN_INLIER_FRACTION, SearchArea, UP_CHECK_MARGIN_RAD,
+    DUPLICATE_ANGLE_RAD, Detection, HYPOTHESIS_THRESHOLD_FACTOR, LIKELY_WRONG_LINK_PROBABILITY,
+    LandmarkDb, MAX_CELLS, MAX_KEPT_HYPOTHESES, MAX_REFINED_HYPOTHESES, MIN_DETECTION_PROBABILITY,
+    MIN_LINK_LEVERAGE_GAP, MIN_TRIPLE_ANGLE_RAD, MatchError, MatchEstimate, MatchOptions,
+    MatchResult, MatchStatus, REFINE_PASSES, STOP_CONFIRMATIONS, STOP_MIN_INLIER_FRACTION,
+    SearchArea, UP_CHECK_MARGIN_RAD,
 };
 use crate::geometry::{Pose, Ray, angle_between, rotation_angle, try_unit};
 use crate::solvers::p3p;
@@ -1400,38 +1401,58 @@ fn conclude(search: &mut Search, cells: usize) -> MatchResult {
             );
         }
     }
-    // Links: only those whose probability given the others is high enough; when some are
-    // dropped, the pose is refined again on the rest.
-    let probabilities = search.link_probabilities(&best, &model);
-    let sure: Vec<Option<usize>> = best
+    // Links. First, while the least probable link is more likely wrong than right, it is
+    // dropped and the pose refined on the rest (a false link biases the pose and makes
+    // every other link look doubtful); a fix that would then keep fewer than `min_inliers`
+    // links is refused. Then only the links whose probability reaches
+    // `min_link_probability` are reported (a frame of few detections has links that the
+    // others check poorly: they stay in the pose but are not reported).
+    let drop_below = options
+        .min_link_probability
+        .min(LIKELY_WRONG_LINK_PROBABILITY);
+    let mut current = best;
+    let mut probabilities = search.link_probabilities(&current, &model);
+    loop {
+        let worst = current
+            .assignment
+            .iter()
+            .zip(&probabilities)
+            .enumerate()
+            .filter_map(|(d, (a, p))| a.and(*p).map(|p| (d, p)))
+            .min_by(|x, y| x.1.total_cmp(&y.1));
+        let Some((d, p)) = worst.filter(|&(_, p)| p < drop_below) else {
+            break;
+        };
+        let links = current.assignment.iter().flatten().count();
+        if links <= options.min_inliers {
+            return result.refused(
+                MatchStatus::NoMatch,
+                format!(
+                    "a link of the best hypothesis is more likely wrong than right (probability {p:.2}) and only {} would remain (at least {} needed)",
+                    links - 1,
+                    options.min_inliers
+                ),
+            );
+        }
+        current.assignment[d] = None;
+        let Some(fit) = search.fit(&current.pose, &current.assignment) else {
+            return result.refused(
+                MatchStatus::NoMatch,
+                "the best hypothesis does not refine without its doubtful links".to_string(),
+            );
+        };
+        current.pose = fit.world_from_rig;
+        current.covariance = fit.covariance;
+        current.rms = fit.rms_residual_rad;
+        probabilities = search.link_probabilities(&current, &model);
+    }
+    let sure: Vec<Option<usize>> = current
         .assignment
         .iter()
         .zip(&probabilities)
         .map(|(a, p)| a.filter(|_| p.is_some_and(|p| p >= options.min_link_probability)))
         .collect();
-    let (pose, covariance, rms) = if sure == best.assignment {
-        (pose, best.covariance, best.rms)
-    } else {
-        let kept = sure.iter().flatten().count();
-        if kept < options.min_inliers {
-            return result.refused(
-                MatchStatus::NoMatch,
-                format!(
-                    "only {kept} of the best hypothesis's {best_score} links are certain (at least {} needed)",
-                    options.min_inliers
-                ),
-            );
-        }
-        match search.fit(&pose, &sure) {
-            Some(fit) => (fit.world_from_rig, fit.covariance, fit.rms_residual_rad),
-            None => {
-                return result.refused(
-                    MatchStatus::NoMatch,
-                    "the certain links do not refine".to_string(),
-                );
-            }
-        }
-    };
+    let (pose, covariance, rms) = (current.pose, current.covariance, current.rms);
     result.link_probability = sure
         .iter()
         .zip(&probabilities)
