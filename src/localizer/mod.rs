@@ -580,6 +580,9 @@ impl Localizer {
         // the mapper keep the refinement's own covariance (the shared part is already inside
         // the surrogates they work with).
         let mut reported = t.clone();
+        // The refinement's own covariance: the part of the pose error that is independent
+        // from frame to frame (observation noise), what the mapper gates and refines with.
+        let own_covariance = t.covariance;
         let n_surveyed = t
             .assignment
             .iter()
@@ -606,7 +609,13 @@ impl Localizer {
         fix.gnss_difference_m = gnss_enu.map(|g| (g - position).xy().norm());
         self.update_state(frame.time_s, &t.world_from_rig, &t.covariance);
         if self.options.surrogates {
-            self.map_observations(frame.time_s, &t, &candidates, &observations);
+            self.map_observations(
+                frame.time_s,
+                &t,
+                &own_covariance,
+                &candidates,
+                &observations,
+            );
         }
         fix.status = LocalizerStatus::Ok;
         fix.source = Some(source);
@@ -877,10 +886,19 @@ impl Localizer {
 
     /// Gives the mapper the observations not associated with a surveyed landmark and
     /// refreshes the surrogates every [`SURROGATE_REFRESH_FRAMES`] frames.
+    ///
+    /// The mapper gates and refines with `own_covariance` (the refinement's covariance, the
+    /// part of the pose error independent from frame to frame); the pose covariance of `t`,
+    /// which includes the error shared with the surrogates the fix used, goes only into the
+    /// surrogates' pose-correlation floor. Gating with the shared error (σ of a metre along
+    /// a surrogate-only stretch) let rays of different landmarks form one track: phantom
+    /// surrogates metres from any landmark, with a σ of 0.2–0.4 m, that pulled the fix tens
+    /// of metres off (see docs/localizer.md, "Phantom surrogates").
     fn map_observations(
         &mut self,
         time_s: f64,
         t: &track::TrackResult,
+        own_covariance: &Matrix6<f64>,
         candidates: &[Candidate],
         observations: &[ObsRay],
     ) {
@@ -902,11 +920,12 @@ impl Localizer {
         let frame = MappingFrame {
             time_s,
             world_from_rig: t.world_from_rig,
-            pose_covariance: t.covariance,
+            pose_covariance: *own_covariance,
             observations: unassociated,
         };
+        let shared = t.covariance.fixed_view::<3, 3>(0, 0).into_owned();
         // A frame the mapper rejects (it validates poses and rays) is simply not mapped.
-        let _ = self.mapper.add_frame(&frame);
+        let _ = self.mapper.add_frame_with_shared(&frame, &shared);
         self.frames_since_refresh += 1;
         if self.frames_since_refresh >= SURROGATE_REFRESH_FRAMES {
             self.frames_since_refresh = 0;
