@@ -4,7 +4,10 @@
 //! near frame 621; before surrogates were gated with the pose error independent from frame
 //! to frame (and checked for consistency), that was enough for phantom surrogates (tracks
 //! mixing rays of several landmarks) to pull the fix 25–60 m off ~1,100 frames later,
-//! with σ ≈ 0.2 m reported (docs/localizer.md, "Phantom surrogates").
+//! with σ ≈ 0.2 m reported (docs/localizer.md, "Phantom surrogates"). Two more seeds of the
+//! same preset had `ok` fixes 4.3 m (a minimal set of 3 surveyed landmarks and 1 surrogate,
+//! σ 3 cm) and 4.1 m off (4–6 surrogates, no surveyed landmark, σ 0.27 m) before the
+//! innovation gate and the redundancy rule for surrogate fixes.
 
 use std::sync::Arc;
 use vgps::localizer::{
@@ -14,16 +17,18 @@ use vgps::matcher::MatchOptions;
 use vgps::simulate::{Preset, Scenario, simulate};
 
 /// Worst horizontal error of an `ok` fix allowed on the reference drive (metres): before
-/// the fix the two settings gave 2.23 m and 60.7 m, after it 0.42 m and 0.58 m.
+/// the fix the two settings gave 2.23 m and 60.7 m (seeds 3 and 4: 4.3 m and 4.1 m), after
+/// it 0.23 m and 0.54 m (0.97 m and 0.18 m).
 const MAX_OK_ERROR_M: f64 = 2.0;
 /// Fewest fixes (fraction of the frames).
 const MIN_FIX_RATE: f64 = 0.99;
 /// Fewest fixes whose horizontal error is inside their 95 % ellipse.
 const MIN_CONTAINMENT: f64 = 0.90;
 
-/// (fixes, worst ok error (m) and its frame, fraction inside the 95 % ellipse).
-fn replay(min_link_probability: f64) -> (usize, usize, f64, u64, f64) {
-    let drive = simulate(&Scenario::preset(Preset::Reference, 1)).unwrap();
+/// Replays the reference preset's drive of `seed`: (fixes, frames, worst ok error (m) and its
+/// frame, fraction of the fixes inside their 95 % ellipse).
+fn replay(seed: u64, min_link_probability: f64) -> (usize, usize, f64, u64, f64) {
+    let drive = simulate(&Scenario::preset(Preset::Reference, seed)).unwrap();
     let landmarks = drive.surveyed_landmarks().unwrap();
     let map = Arc::new(LandmarkMap::from_landmarks(&landmarks, None).unwrap());
     let scenario = vgps::geo::LocalFrame::new(drive.scenario.origin);
@@ -69,10 +74,10 @@ fn replay(min_link_probability: f64) -> (usize, usize, f64, u64, f64) {
     )
 }
 
-fn check(min_link_probability: f64) {
-    let (ok, n, worst, frame, containment) = replay(min_link_probability);
+fn check(seed: u64, min_link_probability: f64) {
+    let (ok, n, worst, frame, containment) = replay(seed, min_link_probability);
     eprintln!(
-        "min_link_probability {min_link_probability}: {ok}/{n} fixes, worst ok error {worst:.2} m \
+        "seed {seed}, min_link_probability {min_link_probability}: {ok}/{n} fixes, worst ok error {worst:.2} m \
          (frame {frame}), {:.1} % inside the 95 % ellipse",
         100.0 * containment
     );
@@ -89,10 +94,16 @@ fn check(min_link_probability: f64) {
 
 #[test]
 fn reference_drive_has_no_far_ok_fix_keeping_every_matcher_link() {
-    check(0.0);
+    check(1, 0.0);
 }
 
 #[test]
 fn reference_drive_has_no_far_ok_fix_dropping_doubtful_matcher_links() {
-    check(0.999);
+    check(1, 0.999);
+}
+
+#[test]
+fn other_reference_drives_have_no_far_ok_fix() {
+    check(3, 0.0);
+    check(4, 0.0);
 }

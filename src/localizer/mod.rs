@@ -95,6 +95,18 @@ pub const MIN_PREDICTION_SIGMA_RAD: f64 = 1.745_329_251_994_33e-3;
 /// A tracked fix whose mean squared normalised residual exceeds this is rejected (the
 /// associations do not fit one pose).
 pub const MAX_MEAN_CHI2: f64 = 6.0;
+/// A tracked pose farther from the motion model's prediction than this many σ of their
+/// combined uncertainty (`√(σ_pred² + σ_fix²)`, total position σ of each, the fix's with the
+/// error it shares with surrogates) is not a fix: the frame is re-acquired through the
+/// matcher instead. A wrong association set that still fits one pose (a minimal set, a
+/// misplaced landmark) moves the pose by metres while its own σ stays centimetres.
+pub const INNOVATION_GATE_SIGMAS: f64 = 4.0;
+/// Fewest associations of a fix that uses fewer than [`crate::fix::MIN_OBSERVATIONS`]
+/// surveyed landmarks. Surrogates have decimetre σ and share their errors; with a handful of
+/// them the mean-χ² test has too little redundancy to notice a wrong association set (on the
+/// reference drives, every such fix with fewer than 8 associations was metres off, while
+/// right fixes there use 15–30).
+pub const MIN_SURROGATE_FIX_ASSOCIATIONS: usize = 8;
 /// Default radius of a re-acquisition prior beyond the predicted position's 3σ (metres).
 pub const DEFAULT_REACQUIRE_MARGIN_M: f64 = 5.0;
 /// Default shortest interval between two cold starts (seconds of drive time): a cold start
@@ -546,6 +558,8 @@ impl Localizer {
                 MIN_TRACKED_CORRESPONDENCES,
             )
             .filter(|t| t.mean_chi2 <= MAX_MEAN_CHI2)
+            .filter(|t| redundant_enough(t, &candidates))
+            .filter(|t| consistent_with_prediction(&pose, &guess, t, &candidates, &observations))
             .map(|t| (t, candidates, FixSource::Tracking));
         }
         if tracked.is_none() {
@@ -856,6 +870,7 @@ impl Localizer {
             MIN_TRACKED_CORRESPONDENCES,
         )
         .filter(|t| t.mean_chi2 <= MAX_MEAN_CHI2)
+        .filter(|t| redundant_enough(t, &candidates))
         .ok_or((
             LocalizerStatus::NoFix,
             "the matcher's pose did not track".to_string(),
@@ -951,6 +966,41 @@ impl Localizer {
                 .collect();
         }
     }
+}
+
+/// True when the tracked pose `t` is within [`INNOVATION_GATE_SIGMAS`] of the prediction
+/// `predicted` (position σ `guess.position_m`), given the fix's position covariance with the
+/// error it shares with surrogates (see [`add_common_mode`]).
+fn consistent_with_prediction(
+    predicted: &Pose,
+    guess: &GuessUncertainty,
+    t: &track::TrackResult,
+    candidates: &[Candidate],
+    observations: &[ObsRay],
+) -> bool {
+    let mut with_common = t.clone();
+    add_common_mode(&mut with_common, candidates, observations);
+    let c = &with_common.covariance;
+    let fix2 = (c[(0, 0)] + c[(1, 1)] + c[(2, 2)]).max(0.0);
+    let innovation = (t.world_from_rig.translation.vector - predicted.translation.vector).norm();
+    innovation <= INNOVATION_GATE_SIGMAS * (guess.position_m * guess.position_m + fix2).sqrt()
+}
+
+/// True when `t` uses at least [`crate::fix::MIN_OBSERVATIONS`] surveyed landmarks, or at
+/// least [`MIN_SURROGATE_FIX_ASSOCIATIONS`] associations in all.
+fn redundant_enough(t: &track::TrackResult, candidates: &[Candidate]) -> bool {
+    let mut surveyed = 0;
+    let mut all = 0;
+    for &ci in t.assignment.iter().flatten() {
+        all += 1;
+        if matches!(
+            candidates.get(ci).map(|c| c.source),
+            Some(CandidateSource::Surveyed(_))
+        ) {
+            surveyed += 1;
+        }
+    }
+    surveyed >= crate::fix::MIN_OBSERVATIONS || all >= MIN_SURROGATE_FIX_ASSOCIATIONS
 }
 
 /// Adds to a fix's position covariance the error it shares with its surrogates.
