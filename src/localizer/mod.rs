@@ -15,7 +15,9 @@
 //!    includes the prediction's uncertainty; the pose is refined on the associations
 //!    (weighted by each one's σ, including the landmark's own σ over its range), outliers
 //!    beyond [`track::OUTLIER_SIGMAS`] are dropped, and association and refinement are
-//!    repeated from the refined pose.
+//!    repeated from the refined pose. A tracked pose farther than
+//!    [`INNOVATION_GATE_SIGMAS`] from the prediction, or resting on fewer than three surveyed
+//!    landmarks and fewer than [`MIN_SURROGATE_FIX_ASSOCIATIONS`] associations, is not a fix.
 //! 2. **Re-acquisition.** Without a usable prediction (start, gap, tracking failure), the
 //!    matcher ([`crate::matcher::match_detections`]) identifies the landmarks around a prior:
 //!    the prediction (its radius growing with the gap), else the satellite GPS position of
@@ -29,7 +31,10 @@
 //!    ([`crate::mapping::SurrogateCriteria`]) join the candidates of the next frames,
 //!    weighted by their covariance, so the fix continues where fewer than three surveyed
 //!    landmarks are visible. A fix from surrogates inherits their covariance, which grows
-//!    with every pose they were mapped from.
+//!    with every pose they were mapped from. The mapper gates with the pose error that is
+//!    independent from frame to frame; the error shared with the surrogates goes into their
+//!    pose-correlation floor only (wide gates made phantom surrogates from rays of several
+//!    landmarks).
 //!
 //! The localizer has no global state; it is `Send` (move it to a worker thread) and the map
 //! is shared read-only.
