@@ -15,7 +15,9 @@
 //!    includes the prediction's uncertainty; the pose is refined on the associations
 //!    (weighted by each one's σ, including the landmark's own σ over its range), outliers
 //!    beyond [`track::OUTLIER_SIGMAS`] are dropped, and association and refinement are
-//!    repeated from the refined pose.
+//!    repeated from the refined pose. A tracked pose farther than
+//!    [`INNOVATION_GATE_SIGMAS`] from the prediction, or resting on fewer than three surveyed
+//!    landmarks and fewer than [`MIN_SURROGATE_FIX_ASSOCIATIONS`] associations, is not a fix.
 //! 2. **Re-acquisition.** Without a usable prediction (start, gap, tracking failure), the
 //!    matcher ([`crate::matcher::match_detections`]) identifies the landmarks around a prior:
 //!    the prediction (its radius growing with the gap), else the satellite GPS position of
@@ -29,7 +31,10 @@
 //!    ([`crate::mapping::SurrogateCriteria`]) join the candidates of the next frames,
 //!    weighted by their covariance, so the fix continues where fewer than three surveyed
 //!    landmarks are visible. A fix from surrogates inherits their covariance, which grows
-//!    with every pose they were mapped from.
+//!    with every pose they were mapped from. The mapper gates with the pose error that is
+//!    independent from frame to frame; the error shared with the surrogates goes into their
+//!    pose-correlation floor only (wide gates made phantom surrogates from rays of several
+//!    landmarks).
 //!
 //! The localizer has no global state; it is `Send` (move it to a worker thread) and the map
 //! is shared read-only.
@@ -95,6 +100,18 @@ pub const MIN_PREDICTION_SIGMA_RAD: f64 = 1.745_329_251_994_33e-3;
 /// A tracked fix whose mean squared normalised residual exceeds this is rejected (the
 /// associations do not fit one pose).
 pub const MAX_MEAN_CHI2: f64 = 6.0;
+/// A tracked pose farther from the motion model's prediction than this many σ of their
+/// combined uncertainty (`√(σ_pred² + σ_fix²)`, total position σ of each, the fix's with the
+/// error it shares with surrogates) is not a fix: the frame is re-acquired through the
+/// matcher instead. A wrong association set that still fits one pose (a minimal set, a
+/// misplaced landmark) moves the pose by metres while its own σ stays centimetres.
+pub const INNOVATION_GATE_SIGMAS: f64 = 4.0;
+/// Fewest associations of a fix that uses fewer than [`crate::fix::MIN_OBSERVATIONS`]
+/// surveyed landmarks. Surrogates have decimetre σ and share their errors; with a handful of
+/// them the mean-χ² test has too little redundancy to notice a wrong association set (on the
+/// reference drives, every such fix with fewer than 8 associations was metres off, while
+/// right fixes there use 15–30).
+pub const MIN_SURROGATE_FIX_ASSOCIATIONS: usize = 8;
 /// Default radius of a re-acquisition prior beyond the predicted position's 3σ (metres).
 pub const DEFAULT_REACQUIRE_MARGIN_M: f64 = 5.0;
 /// Default shortest interval between two cold starts (seconds of drive time): a cold start
@@ -546,6 +563,8 @@ impl Localizer {
                 MIN_TRACKED_CORRESPONDENCES,
             )
             .filter(|t| t.mean_chi2 <= MAX_MEAN_CHI2)
+            .filter(|t| redundant_enough(t, &candidates))
+            .filter(|t| consistent_with_prediction(&pose, &guess, t, &candidates, &observations))
             .map(|t| (t, candidates, FixSource::Tracking));
         }
         if tracked.is_none() {
@@ -580,6 +599,9 @@ impl Localizer {
         // the mapper keep the refinement's own covariance (the shared part is already inside
         // the surrogates they work with).
         let mut reported = t.clone();
+        // The refinement's own covariance: the part of the pose error that is independent
+        // from frame to frame (observation noise), what the mapper gates and refines with.
+        let own_covariance = t.covariance;
         let n_surveyed = t
             .assignment
             .iter()
@@ -606,7 +628,13 @@ impl Localizer {
         fix.gnss_difference_m = gnss_enu.map(|g| (g - position).xy().norm());
         self.update_state(frame.time_s, &t.world_from_rig, &t.covariance);
         if self.options.surrogates {
-            self.map_observations(frame.time_s, &t, &candidates, &observations);
+            self.map_observations(
+                frame.time_s,
+                &t,
+                &own_covariance,
+                &candidates,
+                &observations,
+            );
         }
         fix.status = LocalizerStatus::Ok;
         fix.source = Some(source);
@@ -847,6 +875,7 @@ impl Localizer {
             MIN_TRACKED_CORRESPONDENCES,
         )
         .filter(|t| t.mean_chi2 <= MAX_MEAN_CHI2)
+        .filter(|t| redundant_enough(t, &candidates))
         .ok_or((
             LocalizerStatus::NoFix,
             "the matcher's pose did not track".to_string(),
@@ -877,10 +906,19 @@ impl Localizer {
 
     /// Gives the mapper the observations not associated with a surveyed landmark and
     /// refreshes the surrogates every [`SURROGATE_REFRESH_FRAMES`] frames.
+    ///
+    /// The mapper gates and refines with `own_covariance` (the refinement's covariance, the
+    /// part of the pose error independent from frame to frame); the pose covariance of `t`,
+    /// which includes the error shared with the surrogates the fix used, goes only into the
+    /// surrogates' pose-correlation floor. Gating with the shared error (σ of a metre along
+    /// a surrogate-only stretch) let rays of different landmarks form one track: phantom
+    /// surrogates metres from any landmark, with a σ of 0.2–0.4 m, that pulled the fix tens
+    /// of metres off (see docs/localizer.md, "Phantom surrogates").
     fn map_observations(
         &mut self,
         time_s: f64,
         t: &track::TrackResult,
+        own_covariance: &Matrix6<f64>,
         candidates: &[Candidate],
         observations: &[ObsRay],
     ) {
@@ -902,11 +940,12 @@ impl Localizer {
         let frame = MappingFrame {
             time_s,
             world_from_rig: t.world_from_rig,
-            pose_covariance: t.covariance,
+            pose_covariance: *own_covariance,
             observations: unassociated,
         };
+        let shared = t.covariance.fixed_view::<3, 3>(0, 0).into_owned();
         // A frame the mapper rejects (it validates poses and rays) is simply not mapped.
-        let _ = self.mapper.add_frame(&frame);
+        let _ = self.mapper.add_frame_with_shared(&frame, &shared);
         self.frames_since_refresh += 1;
         if self.frames_since_refresh >= SURROGATE_REFRESH_FRAMES {
             self.frames_since_refresh = 0;
@@ -932,6 +971,41 @@ impl Localizer {
                 .collect();
         }
     }
+}
+
+/// True when the tracked pose `t` is within [`INNOVATION_GATE_SIGMAS`] of the prediction
+/// `predicted` (position σ `guess.position_m`), given the fix's position covariance with the
+/// error it shares with surrogates (see [`add_common_mode`]).
+fn consistent_with_prediction(
+    predicted: &Pose,
+    guess: &GuessUncertainty,
+    t: &track::TrackResult,
+    candidates: &[Candidate],
+    observations: &[ObsRay],
+) -> bool {
+    let mut with_common = t.clone();
+    add_common_mode(&mut with_common, candidates, observations);
+    let c = &with_common.covariance;
+    let fix2 = (c[(0, 0)] + c[(1, 1)] + c[(2, 2)]).max(0.0);
+    let innovation = (t.world_from_rig.translation.vector - predicted.translation.vector).norm();
+    innovation <= INNOVATION_GATE_SIGMAS * (guess.position_m * guess.position_m + fix2).sqrt()
+}
+
+/// True when `t` uses at least [`crate::fix::MIN_OBSERVATIONS`] surveyed landmarks, or at
+/// least [`MIN_SURROGATE_FIX_ASSOCIATIONS`] associations in all.
+fn redundant_enough(t: &track::TrackResult, candidates: &[Candidate]) -> bool {
+    let mut surveyed = 0;
+    let mut all = 0;
+    for &ci in t.assignment.iter().flatten() {
+        all += 1;
+        if matches!(
+            candidates.get(ci).map(|c| c.source),
+            Some(CandidateSource::Surveyed(_))
+        ) {
+            surveyed += 1;
+        }
+    }
+    surveyed >= crate::fix::MIN_OBSERVATIONS || all >= MIN_SURROGATE_FIX_ASSOCIATIONS
 }
 
 /// Adds to a fix's position covariance the error it shares with its surrogates.

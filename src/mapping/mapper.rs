@@ -115,6 +115,7 @@ impl Track {
         eff: RayObservation,
         source: Source,
         t: f64,
+        floor: &Matrix3<f64>,
     ) -> Result<Self, TriangulationError> {
         let mut sum = RaySum::new();
         sum.add(&eff)?;
@@ -128,13 +129,15 @@ impl Track {
             sum,
             estimate: None,
             last_seen_s: t,
-            floor_sum: ray.pose_covariance.fixed_view::<3, 3>(0, 0).into_owned(),
+            floor_sum: *floor,
             refined: None,
             far: (1.0, ray.ray.direction),
         })
     }
 
-    /// Adds a ray, then updates (or tries to initialise) the estimate.
+    /// Adds a ray (its frame's pose-correlation floor contribution `floor`), then updates
+    /// (or tries to initialise) the estimate.
+    #[allow(clippy::too_many_arguments)]
     fn add(
         &mut self,
         ray: MapRay,
@@ -143,9 +146,10 @@ impl Track {
         t: f64,
         min_parallax: f64,
         max_range_m: f64,
+        floor: &Matrix3<f64>,
     ) -> Result<(), TriangulationError> {
         self.sum.add(&eff)?;
-        self.floor_sum += ray.pose_covariance.fixed_view::<3, 3>(0, 0);
+        self.floor_sum += floor;
         if let Some(first) = self.rays.first() {
             let cos = ray.ray.direction.dot(&first.ray.direction);
             if cos < self.far.0 {
@@ -293,8 +297,33 @@ impl LandmarkMapper {
     /// [`MappingError::InvalidPose`] / [`MappingError::InvalidObservation`] (with `frame` =
     /// the number of frames added before); the mapper is then unchanged.
     pub fn add_frame(&mut self, frame: &MappingFrame) -> Result<Vec<u64>, MappingError> {
+        let shared = frame.pose_covariance.fixed_view::<3, 3>(0, 0).into_owned();
+        self.add_frame_with_shared(frame, &shared)
+    }
+
+    /// [`add_frame`](Self::add_frame) for a frame whose pose error is partly shared with
+    /// other frames: `frame.pose_covariance` is the part independent from frame to frame
+    /// (used by the gates, the refinement and the consistency test of a surrogate), and
+    /// `shared_position_covariance` (m², world) the position error the frame shares with the
+    /// others (what a common drift moves every pose by; it goes into the surrogates'
+    /// pose-correlation floor, [`NearbySurrogate::pose_floor_covariance`]). A localizer
+    /// fixing from surrogates has such poses: treating their common drift as independent
+    /// noise widens every gate by it, and rays of different landmarks then join one track.
+    ///
+    /// # Errors
+    /// As [`add_frame`](Self::add_frame); also [`MappingError::InvalidPose`] for a
+    /// non-finite shared covariance.
+    pub fn add_frame_with_shared(
+        &mut self,
+        frame: &MappingFrame,
+        shared_position_covariance: &Matrix3<f64>,
+    ) -> Result<Vec<u64>, MappingError> {
         let frame_index = self.frames_added;
         frame.validate(frame_index)?;
+        if !shared_position_covariance.iter().all(|v| v.is_finite()) {
+            return Err(MappingError::InvalidPose { frame: frame_index });
+        }
+        let floor = *shared_position_covariance;
         let rig_origin = frame.world_from_rig.translation.vector;
         let rays: Vec<MapRay> = frame
             .observations
@@ -455,6 +484,7 @@ impl LandmarkMapper {
                         frame.time_s,
                         opts.min_init_parallax_rad,
                         opts.max_range_m,
+                        &floor,
                     );
                     ids.push(track.id);
                 }
@@ -468,6 +498,7 @@ impl LandmarkMapper {
                         *eff,
                         source,
                         frame.time_s,
+                        &floor,
                     ) {
                         self.tracks.push(t);
                     }
@@ -507,10 +538,26 @@ impl LandmarkMapper {
     /// The landmarks that meet the surrogate criteria of the options (refined, with
     /// position, covariance and number of rays): the secondary landmarks the localizer may
     /// use, weighted by their covariance, when primary landmarks are occluded.
+    ///
+    /// A track whose rays do not meet at one point within their independent noise (mean
+    /// squared normalised residual above [`MAX_SURROGATE_MEAN_CHI2`]: rays of different
+    /// landmarks or false detections joined into one track) is no surrogate.
     pub fn surrogates(&self) -> Vec<MappedLandmark> {
         let c = self.options.surrogate;
-        self.landmarks()
-            .into_iter()
+        self.tracks
+            .iter()
+            .filter(|t| t.estimate.is_some() && t.rays.len() >= self.options.min_landmark_rays)
+            .filter_map(|t| {
+                let e = refine_landmark(&t.rays).ok()?;
+                rays_consistent(&t.rays, &e.point).then_some(MappedLandmark {
+                    id: t.id,
+                    position_enu: e.point,
+                    covariance: e.covariance,
+                    n_obs: e.n_obs,
+                    max_parallax_rad: e.max_parallax_rad(),
+                    class: t.class,
+                })
+            })
             .filter(|l| c.accepts(l))
             .collect()
     }
@@ -545,7 +592,12 @@ impl LandmarkMapper {
                 let e = match &t.refined {
                     Some((n, e)) if *n == n_rays => (*e)?,
                     _ => {
-                        let e = refine_landmark(&t.rays).ok();
+                        // A track whose rays do not meet at one point (rays of different
+                        // landmarks or false detections joined while the gates were wide) is
+                        // no surrogate: its refinement is not kept.
+                        let e = refine_landmark(&t.rays)
+                            .ok()
+                            .filter(|e| rays_consistent(&t.rays, &e.point));
                         t.refined = Some((n_rays, e));
                         e?
                     }
@@ -579,6 +631,29 @@ impl LandmarkMapper {
             .map(|t| (t.id, t.sources.clone()))
             .collect()
     }
+}
+
+/// Mean squared normalised residual (per ray, 2 degrees of freedom: expected 2) above which
+/// a track's rays are taken not to meet at one point, and the track is no surrogate. The
+/// rays' residual covariances hold only the part of the pose errors that is independent from
+/// frame to frame (a drift shared by every pose moves the landmark, not the residuals).
+pub const MAX_SURROGATE_MEAN_CHI2: f64 = 4.0;
+
+/// True when the rays' mean squared normalised residual at `point` is at most
+/// [`MAX_SURROGATE_MEAN_CHI2`] (see [`super::ray_chi2`]); a ray whose residual covariance
+/// cannot be inverted makes the track inconsistent.
+pub(crate) fn rays_consistent(rays: &[MapRay], point: &Vector3<f64>) -> bool {
+    if rays.is_empty() {
+        return false;
+    }
+    let mut sum = 0.0;
+    for r in rays {
+        match super::ray_chi2(r, point) {
+            Some(c) if c.is_finite() => sum += c,
+            _ => return false,
+        }
+    }
+    sum / rays.len() as f64 <= MAX_SURROGATE_MEAN_CHI2
 }
 
 /// A surrogate near a position, for the localizer.

@@ -48,7 +48,9 @@ pub use calibrate::{
 };
 pub use frame::{MappingFrame, RigObservation};
 pub(crate) use mapper::{CONE_ABSOLUTE_MARGIN, CONE_MIN_COS, CONE_RELATIVE_MARGIN, max_or_nan};
-pub use mapper::{LandmarkMapper, MAX_PAIRWISE_RAYS, MapperOptions, NearbySurrogate};
+pub use mapper::{
+    LandmarkMapper, MAX_PAIRWISE_RAYS, MAX_SURROGATE_MEAN_CHI2, MapperOptions, NearbySurrogate,
+};
 pub(crate) use refine::ray_chi2;
 pub use refine::{MapRay, ray_residual_covariance, refine_landmark};
 pub use survey::{

@@ -635,3 +635,87 @@ fn residual_quadratic_forms_match_the_full_covariance() {
         assert!((s22 - e2.dot(&(s * e2))).abs() <= 1e-12 * scale.max(1e-12));
     }
 }
+
+/// A track whose rays alternate between two lamps 2 m apart (what wide gates let through)
+/// does not meet at one point within the rays' independent noise: no surrogate; the rays of
+/// one lamp do.
+#[test]
+fn rays_of_two_landmarks_fail_the_surrogate_consistency_test() {
+    let a = Vector3::new(40.0, -8.0, 7.0);
+    let b = a + Vector3::new(2.0, 0.0, 0.0);
+    let cov = diag6([0.05, 0.05, 0.05, 1e-3, 1e-3, 1e-3]);
+    let mut r = rng(11);
+    let noisy = |rays: Vec<MapRay>, r: &mut _| -> Vec<MapRay> {
+        rays.into_iter()
+            .map(|mut m| {
+                m.ray.direction = crate::synthetic::perturb_bearing(r, &m.ray.direction, 1e-3);
+                m
+            })
+            .collect()
+    };
+    let one = noisy(
+        rays_to(&a, (0..20).map(|k| 1.5 * k as f64), cov, 1e-3),
+        &mut r,
+    );
+    let e = refine_landmark(&one).unwrap();
+    assert!(super::mapper::rays_consistent(&one, &e.point));
+    let mixed: Vec<MapRay> = (0..20)
+        .map(|k| {
+            let lamp = if k % 2 == 0 { a } else { b };
+            rays_to(&lamp, std::iter::once(1.5 * k as f64), cov, 1e-3)[0]
+        })
+        .collect();
+    let mixed = noisy(mixed, &mut r);
+    let e = refine_landmark(&mixed).unwrap();
+    // The refinement alone would call it a good landmark (σ well under the surrogate bound).
+    assert!(e.covariance.symmetric_eigenvalues().max().sqrt() < MAX_SURROGATE_SIGMA_M);
+    assert!(!super::mapper::rays_consistent(&mixed, &e.point));
+    assert!(!super::mapper::rays_consistent(&[], &a));
+}
+
+/// `add_frame_with_shared`: the gates and the landmark covariance use the frame's
+/// (independent) pose covariance, the surrogate's pose-correlation floor the shared one.
+#[test]
+fn shared_pose_error_goes_into_the_floor_not_the_gates() {
+    let lamp = Vector3::new(30.0, -6.0, 7.0);
+    let independent = diag6([0.05, 0.05, 0.05, 1e-3, 1e-3, 1e-3]);
+    let shared = Matrix3::from_diagonal_element(1.0);
+    let mut mapper = LandmarkMapper::new(MapperOptions::default()).unwrap();
+    let mut r = rng(12);
+    for k in 0..30 {
+        let o = Vector3::new(1.5 * k as f64, 0.0, 2.0);
+        let pose = Pose::from_parts(Translation3::from(o), Rotation3::identity());
+        let d = crate::synthetic::perturb_bearing(&mut r, &(lamp - o).normalize(), 1e-3);
+        let frame = MappingFrame {
+            time_s: 0.1 * k as f64,
+            world_from_rig: pose,
+            pose_covariance: independent,
+            observations: vec![RigObservation {
+                ray_in_rig: Ray::try_new(Vector3::zeros(), d).unwrap(),
+                sigma_rad: 1e-3,
+                class: None,
+            }],
+        };
+        mapper.add_frame_with_shared(&frame, &shared).unwrap();
+    }
+    let near = mapper.surrogates_near(&Vector3::zeros(), 200.0);
+    assert_eq!(near.len(), 1);
+    assert!((near[0].pose_floor_covariance - shared).norm() < 1e-12);
+    assert!(
+        near[0].landmark.sigma_m() < 0.1,
+        "{}",
+        near[0].landmark.sigma_m()
+    );
+    assert!((near[0].landmark.position_enu - lamp).norm() < 0.1);
+    assert_eq!(mapper.surrogates().len(), 1);
+    // A non-finite shared covariance is refused and leaves the mapper unchanged.
+    let bad = Matrix3::from_diagonal_element(f64::NAN);
+    let frame = MappingFrame {
+        time_s: 10.0,
+        world_from_rig: Pose::identity(),
+        pose_covariance: independent,
+        observations: Vec::new(),
+    };
+    assert!(mapper.add_frame_with_shared(&frame, &bad).is_err());
+    assert_eq!(mapper.frames_added(), 30);
+}
