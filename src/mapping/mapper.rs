@@ -108,6 +108,20 @@ struct Track {
 }
 
 impl Track {
+    /// The mapped landmark of this track, refined to `e`.
+    fn mapped(&self, e: &TriangulatedPoint) -> MappedLandmark {
+        MappedLandmark {
+            id: self.id,
+            position_enu: e.point,
+            covariance: e.covariance,
+            n_obs: e.n_obs,
+            max_parallax_rad: e.max_parallax_rad(),
+            class: self.class,
+        }
+    }
+}
+
+impl Track {
     fn new(
         id: u64,
         class: Option<u32>,
@@ -523,14 +537,7 @@ impl LandmarkMapper {
             .filter(|t| t.estimate.is_some() && t.rays.len() >= self.options.min_landmark_rays)
             .filter_map(|t| {
                 let e = refine_landmark(&t.rays).ok()?;
-                Some(MappedLandmark {
-                    id: t.id,
-                    position_enu: e.point,
-                    covariance: e.covariance,
-                    n_obs: e.n_obs,
-                    max_parallax_rad: e.max_parallax_rad(),
-                    class: t.class,
-                })
+                Some(t.mapped(&e))
             })
             .collect()
     }
@@ -549,14 +556,7 @@ impl LandmarkMapper {
             .filter(|t| t.estimate.is_some() && t.rays.len() >= self.options.min_landmark_rays)
             .filter_map(|t| {
                 let e = refine_landmark(&t.rays).ok()?;
-                rays_consistent(&t.rays, &e.point).then_some(MappedLandmark {
-                    id: t.id,
-                    position_enu: e.point,
-                    covariance: e.covariance,
-                    n_obs: e.n_obs,
-                    max_parallax_rad: e.max_parallax_rad(),
-                    class: t.class,
-                })
+                rays_consistent(&t.rays, &e.point).then(|| t.mapped(&e))
             })
             .filter(|l| c.accepts(l))
             .collect()
