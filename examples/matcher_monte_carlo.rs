@@ -69,6 +69,12 @@ fn main() {
     // matcher can tell it from a detection of that landmark.
     let mut coincident = 0usize;
     let gate = options.inlier_threshold_sigmas * options.sigma_rad;
+    // The angle between a detection's bearing and landmark `index` under `pose`, radians.
+    let residual = |pose: &vgps::geometry::Pose, index: usize, bearing: &nalgebra::Vector3<f64>| {
+        let p = db.get(index)?.position_in_world;
+        let predicted = pose.inverse_transform_vector(&(p - pose.translation.vector));
+        Some(vgps::geometry::angle_between(&predicted, bearing))
+    };
     let mut times = Vec::with_capacity(frames);
     // Over the fixes: true detections (of a landmark in the database) and those linked to
     // their landmark (the rest are left unlinked, or wrongly linked).
@@ -121,18 +127,16 @@ fn main() {
                 .zip(&frame.detections)
                 .filter(|((a, t), _)| a.is_some() && a != t)
                 .filter_map(|((a, t), bearing)| {
-                    let p = db.get((*a)?)?.position_in_world;
-                    let sigmas = |pose: &vgps::geometry::Pose| {
-                        let predicted =
-                            pose.inverse_transform_vector(&(p - pose.translation.vector));
-                        vgps::geometry::angle_between(&predicted, bearing) / options.sigma_rad
-                    };
-                    let estimated = result.estimate.as_ref().map(|e| sigmas(&e.world_from_rig));
+                    let index = (*a)?;
+                    let estimated = result
+                        .estimate
+                        .as_ref()
+                        .and_then(|e| residual(&e.world_from_rig, index, bearing));
                     Some(format!(
                         "[{} {:.1}σ est, {:.1}σ true]",
                         if t.is_some() { "true det" } else { "false det" },
-                        estimated.unwrap_or(f64::NAN),
-                        sigmas(&pose)
+                        estimated.unwrap_or(f64::NAN) / options.sigma_rad,
+                        residual(&pose, index, bearing)? / options.sigma_rad
                     ))
                 })
                 .collect();
@@ -176,13 +180,9 @@ fn main() {
                     .zip(&frame.detections)
                     .filter(|((a, t), _)| a.is_some() && a != t)
                     .all(|((a, t), bearing)| {
-                        let landmark = a.and_then(|i| db.get(i)).map(|l| l.position_in_world);
                         t.is_none()
-                            && landmark.is_some_and(|p| {
-                                let predicted =
-                                    pose.inverse_transform_vector(&(p - pose.translation.vector));
-                                vgps::geometry::angle_between(&predicted, bearing) <= gate
-                            })
+                            && a.and_then(|i| residual(&pose, i, bearing))
+                                .is_some_and(|r| r <= gate)
                     });
                 if error > WRONG_FIX_M {
                     wrong += 1;

@@ -8,7 +8,7 @@ use vgps::matcher::{
     DbLandmark, Detection, LandmarkDb, MatchError, MatchOptions, MatchStatus, SearchArea,
     match_detections,
 };
-use vgps::synthetic::matcher::{CityConfig, CityWorld, FrameConfig};
+use vgps::synthetic::matcher::{CityConfig, CityWorld, FrameConfig, Trial};
 use vgps::synthetic::{random_unit_vector, rng};
 
 /// Detections of a central rig (every ray from the rig origin) with the given bearings.
@@ -336,6 +336,34 @@ fn lamps_among_many_other_lights_are_found_and_seen_twice() {
     );
 }
 
+/// The landmarks and frame `index` of `matcher_monte_carlo -- prior FRAMES seed` (the
+/// default city).
+fn monte_carlo_prior_frame(seed: u64, index: usize) -> (LandmarkDb, Trial) {
+    let config = FrameConfig::default();
+    let mut r = rng(seed);
+    let world = CityWorld::generate(&mut r, &CityConfig::default());
+    let db = world.landmark_db().unwrap();
+    let mut trial = world.prior_trial(&mut r, &config);
+    for _ in 0..index {
+        trial = world.prior_trial(&mut r, &config);
+    }
+    (db, trial)
+}
+
+/// The landmarks and frame `index` of `matcher_monte_carlo -- cold FRAMES seed` (the
+/// sparse city).
+fn monte_carlo_cold_frame(seed: u64, index: usize) -> (LandmarkDb, Trial) {
+    let config = FrameConfig::default();
+    let mut r = rng(seed);
+    let world = CityWorld::generate(&mut r, &CityConfig::sparse());
+    let db = world.landmark_db().unwrap();
+    let mut trial = world.cold_trial(&mut r, &config, &db);
+    for _ in 0..index {
+        trial = world.cold_trial(&mut r, &config, &db);
+    }
+    (db, trial)
+}
+
 /// The options of the Monte-Carlo experiment with a known vertical (`UP_TOL_DEG=4`).
 fn up4_options() -> MatchOptions {
     MatchOptions {
@@ -364,7 +392,6 @@ fn hard_frames_of_the_monte_carlo_are_fixed_right() {
     // - seed 42, frame 1036: 14 inliers against a look-alike one lamp spacing along the
     //   street with 13 (log odds 10): was `ambiguous`; the evidence is now weighed when the
     //   best is one inlier short of the margin.
-    let config = FrameConfig::default();
     for (seed, index) in [
         (42u64, 351usize),
         (42, 1036),
@@ -374,13 +401,7 @@ fn hard_frames_of_the_monte_carlo_are_fixed_right() {
         (42, 6537),
         (7, 6382),
     ] {
-        let mut r = rng(seed);
-        let world = CityWorld::generate(&mut r, &CityConfig::default());
-        let db = world.landmark_db().unwrap();
-        let mut trial = world.prior_trial(&mut r, &config);
-        for _ in 0..index {
-            trial = world.prior_trial(&mut r, &config);
-        }
+        let (db, trial) = monte_carlo_prior_frame(seed, index);
         let detections: Vec<Detection> = central_detections(&trial.frame.detections);
         let result = match_detections(&db, &detections, &trial.area, &up4_options()).unwrap();
         assert_eq!(
@@ -414,14 +435,7 @@ fn every_gate_inlier_is_linked_when_no_link_probability_is_asked() {
     // Frame 1168 of seed 42 (see above): with `min_link_probability` 0 the matcher links
     // every detection within the inlier gate, including the false detection 3.8σ from a
     // landmark the sure links leave out.
-    let config = FrameConfig::default();
-    let mut r = rng(42);
-    let world = CityWorld::generate(&mut r, &CityConfig::default());
-    let db = world.landmark_db().unwrap();
-    let mut trial = world.prior_trial(&mut r, &config);
-    for _ in 0..1168 {
-        trial = world.prior_trial(&mut r, &config);
-    }
+    let (db, trial) = monte_carlo_prior_frame(42, 1168);
     let detections = central_detections(&trial.frame.detections);
     let wrong_links = |options: &MatchOptions| {
         let result = match_detections(&db, &detections, &trial.area, options).unwrap();
@@ -463,14 +477,7 @@ fn a_cold_start_on_the_edge_street_of_a_regular_grid_is_ambiguous_not_wrong() {
     // detections, was reported as a fix. The trials now search `rig_region` (the streets),
     // which holds the truth; the frame is then `ambiguous` between two poses that explain
     // every true detection, which is the right answer.
-    let mut r = rng(3);
-    let world = CityWorld::generate(&mut r, &CityConfig::sparse());
-    let db = world.landmark_db().unwrap();
-    let config = FrameConfig::default();
-    let mut trial = world.cold_trial(&mut r, &config, &db);
-    for _ in 0..42 {
-        trial = world.cold_trial(&mut r, &config, &db);
-    }
+    let (db, trial) = monte_carlo_cold_frame(3, 42);
     let truth = trial.pose.translation.vector;
     let landmarks_only = SearchArea::over_landmarks(&db, 0.0, 1.0, 3.0).unwrap();
     assert!(truth.x < landmarks_only.min_in_world.x, "{truth:?}");
@@ -494,14 +501,7 @@ fn a_cold_start_with_equal_counts_is_decided_only_by_decisive_residuals() {
     // fit far worse (likelihood ratio about 10¹⁰ with the noise floor from the best's own
     // residuals), so the frame is a right fix; it was `ambiguous` by the count alone. Frame
     // 42 of seed 3 (above: 10 against 10, log odds 7.5) stays `ambiguous`.
-    let mut r = rng(5);
-    let world = CityWorld::generate(&mut r, &CityConfig::sparse());
-    let db = world.landmark_db().unwrap();
-    let config = FrameConfig::default();
-    let mut trial = world.cold_trial(&mut r, &config, &db);
-    for _ in 0..8 {
-        trial = world.cold_trial(&mut r, &config, &db);
-    }
+    let (db, trial) = monte_carlo_cold_frame(5, 8);
     let detections: Vec<Detection> = central_detections(&trial.frame.detections);
     let result = match_detections(&db, &detections, &trial.area, &up4_options()).unwrap();
     assert_eq!(result.status, MatchStatus::Ok, "{result:?}");

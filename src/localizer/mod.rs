@@ -983,10 +983,8 @@ fn consistent_with_prediction(
     candidates: &[Candidate],
     observations: &[ObsRay],
 ) -> bool {
-    let mut with_common = t.clone();
-    add_common_mode(&mut with_common, candidates, observations);
-    let c = &with_common.covariance;
-    let fix2 = (c[(0, 0)] + c[(1, 1)] + c[(2, 2)]).max(0.0);
+    let c = t.covariance.fixed_view::<3, 3>(0, 0) + common_mode(t, candidates, observations);
+    let fix2 = c.trace().max(0.0);
     let innovation = (t.world_from_rig.translation.vector - predicted.translation.vector).norm();
     innovation <= INNOVATION_GATE_SIGMAS * (guess.position_m * guess.position_m + fix2).sqrt()
 }
@@ -1016,6 +1014,17 @@ fn redundant_enough(t: &track::TrackResult, candidates: &[Candidate]) -> bool {
 /// associations). The added term is `f²·Σ̄`, with `Σ̄` the mean of the surrogates' full
 /// covariances including their pose-correlation floor.
 fn add_common_mode(t: &mut track::TrackResult, candidates: &[Candidate], observations: &[ObsRay]) {
+    let add = common_mode(t, candidates, observations);
+    let mut block = t.covariance.fixed_view_mut::<3, 3>(0, 0);
+    block += add;
+}
+
+/// The position covariance [`add_common_mode`] adds to the fix `t` (zero without surrogates).
+fn common_mode(
+    t: &track::TrackResult,
+    candidates: &[Candidate],
+    observations: &[ObsRay],
+) -> nalgebra::Matrix3<f64> {
     let mut total = 0.0;
     let mut from_surrogates = 0.0;
     let mut common = nalgebra::Matrix3::zeros();
@@ -1036,8 +1045,8 @@ fn add_common_mode(t: &mut track::TrackResult, candidates: &[Candidate], observa
     }
     if n_common > 0.0 && total > 0.0 {
         let f = from_surrogates / total;
-        let add = common * (f * f / n_common);
-        let mut block = t.covariance.fixed_view_mut::<3, 3>(0, 0);
-        block += add;
+        common * (f * f / n_common)
+    } else {
+        nalgebra::Matrix3::zeros()
     }
 }

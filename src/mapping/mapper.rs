@@ -119,9 +119,7 @@ impl Track {
             class: self.class,
         }
     }
-}
 
-impl Track {
     fn new(
         id: u64,
         class: Option<u32>,
@@ -532,14 +530,16 @@ impl LandmarkMapper {
     /// The refined landmarks: every track with an estimate and at least `min_landmark_rays`
     /// rays, refined by [`refine_landmark`] (tracks whose refinement fails are left out).
     pub fn landmarks(&self) -> Vec<MappedLandmark> {
+        self.refined_tracks().map(|(t, e)| t.mapped(&e)).collect()
+    }
+
+    /// Every track with an estimate and at least `min_landmark_rays` rays, with its
+    /// refinement (tracks whose refinement fails are left out).
+    fn refined_tracks(&self) -> impl Iterator<Item = (&Track, TriangulatedPoint)> {
         self.tracks
             .iter()
             .filter(|t| t.estimate.is_some() && t.rays.len() >= self.options.min_landmark_rays)
-            .filter_map(|t| {
-                let e = refine_landmark(&t.rays).ok()?;
-                Some(t.mapped(&e))
-            })
-            .collect()
+            .filter_map(|t| Some((t, refine_landmark(&t.rays).ok()?)))
     }
 
     /// The landmarks that meet the surrogate criteria of the options (refined, with
@@ -551,13 +551,9 @@ impl LandmarkMapper {
     /// landmarks or false detections joined into one track) is no surrogate.
     pub fn surrogates(&self) -> Vec<MappedLandmark> {
         let c = self.options.surrogate;
-        self.tracks
-            .iter()
-            .filter(|t| t.estimate.is_some() && t.rays.len() >= self.options.min_landmark_rays)
-            .filter_map(|t| {
-                let e = refine_landmark(&t.rays).ok()?;
-                rays_consistent(&t.rays, &e.point).then(|| t.mapped(&e))
-            })
+        self.refined_tracks()
+            .filter(|(t, e)| rays_consistent(&t.rays, &e.point))
+            .map(|(t, e)| t.mapped(&e))
             .filter(|l| c.accepts(l))
             .collect()
     }

@@ -1452,7 +1452,6 @@ fn conclude(search: &mut Search, cells: usize) -> MatchResult {
         .zip(&probabilities)
         .map(|(a, p)| a.filter(|_| p.is_some_and(|p| p >= options.min_link_probability)))
         .collect();
-    let (pose, covariance, rms) = (current.pose, current.covariance, current.rms);
     result.link_probability = sure
         .iter()
         .zip(&probabilities)
@@ -1460,9 +1459,9 @@ fn conclude(search: &mut Search, cells: usize) -> MatchResult {
         .collect();
     result.assignment = sure;
     result.estimate = Some(MatchEstimate {
-        world_from_rig: pose,
-        covariance,
-        rms_residual_rad: rms,
+        world_from_rig: current.pose,
+        covariance: current.covariance,
+        rms_residual_rad: current.rms,
     });
     result
 }
