@@ -141,7 +141,8 @@ fn main() {
                 })
                 .collect();
             println!(
-                "frame {frame_index}: {} true {} best {} runner {:?} (runner-up {:?} m from the truth) cells {} hyp {} err {:?} wrong_links {} {} {:.1} ms {}",
+                "frame {frame_index}: links {} {} true {} best {} runner {:?} (runner-up {:?} m from the truth) cells {} hyp {} err {:?} wrong_links {} {} {:.1} ms {}",
+                result.assignment.iter().flatten().count(),
                 result.status,
                 true_count,
                 result.best_score,

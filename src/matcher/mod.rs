@@ -183,6 +183,11 @@ pub const DEFAULT_MAX_ROUNDS: usize = 4;
 /// share no detection (triples sharing a false detection are not independent evidence).
 pub const STOP_CONFIRMATIONS: u32 = 2;
 
+/// Most confirmation triples per frame: detection triples drawn from the detections the
+/// best pose explains, run next so that a best found early is confirmed (or outranked by
+/// the pose those detections really support) without waiting for the random order.
+pub const MAX_CONFIRMATION_TRIPLES: usize = 6;
+
 /// Two poses closer than this (and [`DISTINCT_ROTATION_RAD`]) are the same hypothesis.
 pub const DISTINCT_POSITION_M: f64 = 1.5;
 

@@ -4,10 +4,10 @@
 use super::{
     CORE_GROWTH, DECISIVE_LOG_ODDS, DISTINCT_POSITION_M, DISTINCT_ROTATION_RAD,
     DUPLICATE_ANGLE_RAD, Detection, HYPOTHESIS_THRESHOLD_FACTOR, LIKELY_WRONG_LINK_PROBABILITY,
-    LandmarkDb, MAX_CELLS, MAX_KEPT_HYPOTHESES, MAX_REFINED_HYPOTHESES, MIN_DETECTION_PROBABILITY,
-    MIN_LINK_LEVERAGE_GAP, MIN_TRIPLE_ANGLE_RAD, MatchError, MatchEstimate, MatchOptions,
-    MatchResult, MatchStatus, REFINE_PASSES, STOP_CONFIRMATIONS, STOP_MIN_INLIER_FRACTION,
-    SearchArea, UP_CHECK_MARGIN_RAD,
+    LandmarkDb, MAX_CELLS, MAX_CONFIRMATION_TRIPLES, MAX_KEPT_HYPOTHESES, MAX_REFINED_HYPOTHESES,
+    MIN_DETECTION_PROBABILITY, MIN_LINK_LEVERAGE_GAP, MIN_TRIPLE_ANGLE_RAD, MatchError,
+    MatchEstimate, MatchOptions, MatchResult, MatchStatus, REFINE_PASSES, STOP_CONFIRMATIONS,
+    STOP_MIN_INLIER_FRACTION, SearchArea, UP_CHECK_MARGIN_RAD,
 };
 use crate::geometry::{Pose, Ray, angle_between, rotation_angle, try_unit};
 use crate::solvers::p3p;
@@ -97,6 +97,9 @@ struct Hypothesis {
     /// The detection triples that confirmed the pose, pairwise disjoint (their number is the
     /// pose's confirmations).
     confirming: Vec<[usize; 3]>,
+    /// The detections the pose explains (at the hypothesis threshold), in index order: the
+    /// pool of its confirmation triples ([`Search::confirmation_triple`]).
+    explained: Vec<usize>,
 }
 
 /// The message of [`MatchStatus::NoLandmarksInRange`].
@@ -543,7 +546,19 @@ impl Search<'_> {
     /// counts as confirmed only by a triple that shares no detection with the triples that
     /// confirmed it before: triples sharing a false detection that happens to line up with a
     /// landmark under a repetitive look-alike pose confirm it without independent evidence.
-    fn keep(&mut self, pose: Pose, inliers: usize, cost: f64, triple: [usize; 3]) {
+    fn keep(
+        &mut self,
+        pose: Pose,
+        inliers: usize,
+        cost: f64,
+        triple: [usize; 3],
+        assignment: &[Option<usize>],
+    ) {
+        let explained = || {
+            (0..assignment.len())
+                .filter(|&d| assignment[d].is_some())
+                .collect()
+        };
         if let Some(h) = self.kept.iter_mut().find(|h| same_pose(&h.pose, &pose)) {
             if h.confirming
                 .iter()
@@ -555,6 +570,7 @@ impl Search<'_> {
                 h.pose = pose;
                 h.inliers = inliers;
                 h.cost = cost;
+                h.explained = explained();
             }
         } else {
             if self.kept.len() >= MAX_KEPT_HYPOTHESES {
@@ -569,10 +585,61 @@ impl Search<'_> {
                 inliers,
                 cost,
                 confirming: vec![triple],
+                explained: explained(),
             });
         }
         self.kept
             .sort_by(|x, y| y.inliers.cmp(&x.inliers).then(x.cost.total_cmp(&y.cost)));
+    }
+
+    /// The detection triple that should run next to confirm the best pose, if one is due:
+    /// the best explains at least `enough` detections and has fewer than
+    /// [`STOP_CONFIRMATIONS`] disjoint confirming triples. The triple is drawn from the
+    /// detections the best explains and that no confirming triple holds, the cheapest first
+    /// (fewest candidates in the pair tables, `allowed_counts`), with the three bearings at
+    /// least [`MIN_TRIPLE_ANGLE_RAD`] apart and a determinant beyond the noise; `tried`
+    /// triples are not drawn again.
+    ///
+    /// Why this is safe: the triple consists of detections the best explains, which are
+    /// detections of landmarks unless they line up with one by chance. If the best is the
+    /// true pose the triple generates it again (the stop). If it is a look-alike (the same
+    /// detections explained by other landmarks), the triple, made of true detections, also
+    /// generates the true pose, which then outranks it or ties with it: the conclusion sees
+    /// both, as it would after any other triple of true detections.
+    fn confirmation_triple(
+        &self,
+        enough: usize,
+        allowed_counts: &[usize],
+        tried: &[[usize; 3]],
+    ) -> Option<[usize; 3]> {
+        let top = self.kept.first()?;
+        if top.inliers < enough || top.confirming.len() >= STOP_CONFIRMATIONS as usize {
+            return None;
+        }
+        let mut pool: Vec<usize> = top
+            .explained
+            .iter()
+            .copied()
+            .filter(|&d| allowed_counts[d] > 0 && !top.confirming.iter().flatten().any(|&c| c == d))
+            .collect();
+        pool.sort_by_key(|&d| (allowed_counts[d], d));
+        let dirs = &self.directions;
+        for z in 2..pool.len() {
+            for y in 1..z {
+                for x in 0..y {
+                    let mut t = [pool[x], pool[y], pool[z]];
+                    t.sort_unstable();
+                    let spread = (0..3).all(|p| {
+                        angle_between(&dirs[t[p]], &dirs[t[(p + 1) % 3]]) >= MIN_TRIPLE_ANGLE_RAD
+                    });
+                    let determinant = dirs[t[0]].dot(&dirs[t[1]].cross(&dirs[t[2]]));
+                    if spread && determinant.abs() > 3.0 * self.noise && !tried.contains(&t) {
+                        return Some(t);
+                    }
+                }
+            }
+        }
+        None
     }
 
     /// The effective bearing σ of landmark `l` at `range` metres: the bearing noise and the
@@ -712,52 +779,65 @@ impl Search<'_> {
             .collect()
     }
 
-    /// Refines a pose with its inliers and re-scores it against every landmark in range.
+    /// One refinement pass: the detections within `factor` × the inlier threshold of a
+    /// landmark in range under `pose` are fitted, and the fitted pose is re-scored against
+    /// every landmark in range at the inlier threshold.
+    fn refine_pass(&mut self, pose: &Pose, factor: f64, near: &mut Vec<usize>) -> Option<Refined> {
+        let range = self.options.visibility_range_m;
+        self.db.within(&pose.translation.vector, range, near);
+        let (_, _, assignment) = self.score(pose, &near.clone(), factor, 0);
+        let fitted = self.fit(pose, &assignment)?;
+        let pose = fitted.world_from_rig;
+        self.db.within(&pose.translation.vector, range, near);
+        let (inliers, cost, assignment) = self.score(&pose, &near.clone(), 1.0, 0);
+        Some(Refined {
+            pose,
+            covariance: fitted.covariance,
+            rms: fitted.rms_residual_rad,
+            inliers,
+            cost: cost + (self.detections.len() - inliers) as f64,
+            assignment,
+        })
+    }
+
+    /// Refines a pose with its inliers and re-scores it against every landmark in range:
+    /// a first pass at the hypothesis threshold, then passes at the inlier threshold until
+    /// the inliers stop changing (at most [`REFINE_PASSES`]).
     fn refine(&mut self, start: &Pose) -> Option<Refined> {
-        let mut pose = *start;
         let mut near = Vec::new();
+        let mut result: Option<Refined> = None;
         let mut factor = HYPOTHESIS_THRESHOLD_FACTOR;
-        let mut result = None;
         for _ in 0..REFINE_PASSES {
-            self.db.within(
-                &pose.translation.vector,
-                self.options.visibility_range_m,
-                &mut near,
-            );
-            let (_, _, assignment) = self.score(&pose, &near.clone(), factor, 0);
+            let from = result.as_ref().map_or(*start, |r| r.pose);
+            let pass = self.refine_pass(&from, factor, &mut near)?;
             factor = 1.0;
-            let refined = self.fit(&pose, &assignment)?;
-            pose = refined.world_from_rig;
-            self.db.within(
-                &pose.translation.vector,
-                self.options.visibility_range_m,
-                &mut near,
-            );
-            let (inliers, cost, assignment) = self.score(&pose, &near.clone(), 1.0, 0);
-            // A pass that explains fewer detections than the one before drifts away (three
-            // nearly collinear lamps fix the height badly): the better pass is kept.
-            if result
-                .as_ref()
-                .is_some_and(|r: &Refined| inliers < r.inliers)
-            {
-                break;
-            }
-            let done = result
-                .as_ref()
-                .is_some_and(|r: &Refined| r.assignment == assignment);
-            result = Some(Refined {
-                pose,
-                covariance: refined.covariance,
-                rms: refined.rms_residual_rad,
-                inliers,
-                cost: cost + (self.detections.len() - inliers) as f64,
-                assignment,
-            });
-            if done {
-                break;
+            match &result {
+                // A pass that explains fewer detections than the one before drifts away
+                // (three nearly collinear lamps fix the height badly): the better pass is
+                // kept.
+                Some(r) if pass.inliers < r.inliers => break,
+                Some(r) if pass.assignment == r.assignment => {
+                    result = Some(pass);
+                    break;
+                }
+                _ => result = Some(pass),
             }
         }
-        result
+        // The inlier threshold can leave out the detections of near landmarks when the pose
+        // is a few centimetres off (5 cm is 0.6° at 5 m); the passes above then converge on
+        // the distant ones. One more pass from the refined pose at the hypothesis threshold
+        // takes them in; it is kept, refitted once on its inliers, only if it explains more.
+        let best = result?;
+        match self.refine_pass(&best.pose, HYPOTHESIS_THRESHOLD_FACTOR, &mut near) {
+            Some(wider) if wider.inliers > best.inliers => {
+                let refit = self.refine_pass(&wider.pose, 1.0, &mut near);
+                Some(match refit {
+                    Some(r) if r.inliers >= wider.inliers => r,
+                    _ => wider,
+                })
+            }
+            _ => Some(best),
+        }
     }
 }
 
@@ -1068,6 +1148,23 @@ pub(super) fn run(
         })
         .collect();
     let n_usable = usable.iter().filter(|&&u| u).count();
+    // Per detection, the (cell, candidate) pairs it may be: the size of its rows and columns
+    // in the pair tables (0 for an unusable detection).
+    let allowed_counts: Vec<usize> = (0..n)
+        .map(|d| {
+            cell_data
+                .iter()
+                .map(|cell| {
+                    cell.allowed[d * cell.words..(d + 1) * cell.words]
+                        .iter()
+                        .map(|w| w.count_ones() as usize)
+                        .sum::<usize>()
+                })
+                .sum()
+        })
+        .collect();
+    // The confirmation triples run so far (sorted detection indices).
+    let mut confirmations_tried: Vec<[usize; 3]> = Vec::new();
     // Every usable detection in farthest-point order; round `r` draws its triples from the
     // first `max_core_detections · CORE_GROWTH^r` of them.
     let order = core_detections(&search.directions, &usable, n_usable);
@@ -1121,7 +1218,19 @@ pub(super) fn run(
             .max_detection_triples
             .saturating_mul(core_size.div_ceil(options.max_core_detections));
         triples.truncate(budget);
-        for &[a, b, c] in &triples {
+        // The next triple: a confirmation triple of the best pose when one is due (see
+        // `Search::confirmation_triple`), else the next of the round's triples.
+        let mut next = 0;
+        let mut confirmation: Option<[usize; 3]> = None;
+        loop {
+            let [a, b, c] = match confirmation.take() {
+                Some(t) => t,
+                None => {
+                    let Some(&t) = triples.get(next) else { break };
+                    next += 1;
+                    t
+                }
+            };
             solved.clear();
             solved_poses.clear();
             let bearings = [
@@ -1226,10 +1335,10 @@ pub(super) fn run(
                         // scoring to the end.
                         let best = search.kept.first().map_or(0, |h| h.inliers);
                         let needed = best.saturating_sub(options.ambiguity_margin + 1).max(4);
-                        let (inliers, cost, _) =
+                        let (inliers, cost, assignment) =
                             search.score(&pose, &cell.indices, HYPOTHESIS_THRESHOLD_FACTOR, needed);
                         if inliers >= options.min_inliers.min(4) {
-                            search.keep(pose, inliers, cost, [a, b, c]);
+                            search.keep(pose, inliers, cost, [a, b, c], &assignment);
                         }
                     }
                     if solves >= options.max_hypotheses {
@@ -1257,6 +1366,11 @@ pub(super) fn run(
                 if so_far.status == MatchStatus::Ok && so_far.best_score >= enough {
                     return Ok(so_far);
                 }
+            }
+            if confirmations_tried.len() < MAX_CONFIRMATION_TRIPLES {
+                confirmation =
+                    search.confirmation_triple(enough, &allowed_counts, &confirmations_tried);
+                confirmations_tried.extend(confirmation);
             }
         }
         // No early stop: when inliers are few among many detections the core may hold fewer
