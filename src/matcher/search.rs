@@ -904,6 +904,34 @@ fn shuffle<T>(items: &mut [T], seed: u64) {
     }
 }
 
+/// The values of a candidate pair `(i, j)`, `i < j`, of a cell (see [`CellData`]).
+#[derive(Clone, Copy)]
+struct PairValues {
+    angle: f64,
+    bound: f64,
+    det: (f64, f64),
+}
+
+/// The row-major `m × m` matrix of one value of the pairs `upper` (`i < j`, row by row):
+/// `value(upper(i, j))` above the diagonal, `mirror` of it at `(j, i)`, `diagonal` on it.
+fn full_matrix<T: Copy>(
+    upper: &[PairValues],
+    m: usize,
+    diagonal: T,
+    value: impl Fn(&PairValues) -> T,
+    mirror: impl Fn(T) -> T,
+) -> Vec<T> {
+    // Position of the pair `(i, i + 1)` in `upper`.
+    let row = |i: usize| i * (2 * m - i - 1) / 2;
+    let mut full = Vec::with_capacity(m * m);
+    for i in 0..m {
+        full.extend((0..i).map(|j| mirror(value(&upper[row(j) + i - j - 1]))));
+        full.push(diagonal);
+        full.extend(upper[row(i)..row(i) + m - i - 1].iter().map(&value));
+    }
+    full
+}
+
 /// Above this many landmark pairs within reach of the whole search area, the [`PairTerms`]
 /// are computed per cell instead of once per frame: a cold start over a city would fill a
 /// table of every pair of its landmarks, mostly never in one cell together.
@@ -984,8 +1012,8 @@ fn cell_data(
         }
     }
     let use_shared = !shared_points.is_empty();
-    // Start of row `a` of the triangular `shared_pairs`: pair `(a, b)`, `a < b`, is at
-    // `row_start[a] + b − a − 1`.
+    // Start of row `a` of the triangular `shared_pairs` (the pairs `(a, b)`, `b > a`, row by
+    // row): pair `(a, b)` is at `row_start[a] + b − a − 1`.
     let g = shared_points.len();
     let row_start: Vec<usize> = (0..g).map(|a| a * (2 * g - a - 1) / 2).collect();
 
@@ -1000,6 +1028,7 @@ fn cell_data(
     // Per candidate of the current cell: its position in `shared` and its [`DetSide`].
     let mut slots: Vec<usize> = Vec::new();
     let mut sides: Vec<DetSide> = Vec::new();
+    let mut upper: Vec<PairValues> = Vec::new();
     let mut cell_data: Vec<CellData> = Vec::new();
     for (_, centre) in &keyed {
         // The candidates, seen from the centre, in increasing database index.
@@ -1051,58 +1080,64 @@ fn cell_data(
                 try_unit(&(db.landmarks()[index].position_in_world - centre)).is_some()
             });
             let found: Vec<usize> = cands.iter().map(|c| c.index).collect();
-            debug_assert_eq!(found, near, "the candidates of a cell from the shared landmarks");
+            debug_assert_eq!(
+                found, near,
+                "the candidates of a cell from the shared landmarks"
+            );
         }
         if cands.len() < 3 {
             continue;
         }
         let m = cands.len();
-        // The pair tables, built row by row: row `i` mirrors rows `j < i` (already built)
-        // and computes the pairs `j > i`.
-        let mut angles: Vec<f64> = Vec::with_capacity(m * m);
-        let mut bounds: Vec<f64> = Vec::with_capacity(m * m);
-        let mut dets: Vec<(f64, f64)> = Vec::with_capacity(if up.is_some() { m * m } else { 0 });
-        for i in 0..m {
-            for j in 0..i {
-                let (a, b) = (angles[j * m + i], bounds[j * m + i]);
-                angles.push(a);
-                bounds.push(b);
-                if up.is_some() {
-                    let (lo, hi) = dets[j * m + i];
-                    dets.push((-hi, -lo));
-                }
-            }
-            angles.push(0.0);
-            bounds.push(0.0);
-            if up.is_some() {
-                dets.push((-1.0, 1.0));
-            }
-            let ci = &cands[i];
-            for j in i + 1..m {
-                let cj = &cands[j];
+        // The pairs `i < j`, row by row.
+        upper.clear();
+        for (i, (ci, si)) in cands.iter().zip(&sides).enumerate() {
+            // The shared pairs `(slots[i], b)`, `b > slots[i]`, from `b = slots[i] + 1` on.
+            let shared_row = if use_shared {
+                &shared_pairs[row_start[slots[i]]..]
+            } else {
+                &[]
+            };
+            let rest = cands[i + 1..]
+                .iter()
+                .zip(&sides[i + 1..])
+                .zip(&slots[i + 1..]);
+            for ((cj, sj), &slot_j) in rest {
                 let pair = if use_shared {
-                    shared_pairs[row_start[slots[i]] + slots[j] - slots[i] - 1]
+                    shared_row[slot_j - slots[i] - 1]
                 } else {
                     let (li, lj) = (&db.landmarks()[ci.index], &db.landmarks()[cj.index]);
                     PairTerms::new(
-                        (&li.position_in_world, sides[i].survey_m),
-                        (&lj.position_in_world, sides[j].survey_m),
+                        (&li.position_in_world, si.survey_m),
+                        (&lj.position_in_world, sj.survey_m),
                         half_horizontal,
                     )
                 };
-                // `acos` of the dot product of unit vectors: its error near 0 and π (about
-                // 1e-8 rad) is far below the bearing noise, and it is several times cheaper
-                // than the `atan2` form of `angle_between` over the m² pairs of every cell.
-                angles.push(ci.direction.dot(&cj.direction).clamp(-1.0, 1.0).acos());
-                bounds.push(
-                    pair_angle_wander(ci, cj, pair.separation_m, radius) + ci.survey + cj.survey,
-                );
-                // Which side of each other landmark a landmark is, seen from above.
-                if up.is_some() {
-                    dets.push(det_range(&sides[i], &sides[j], &pair));
-                }
+                upper.push(PairValues {
+                    // `acos` of the dot product of unit vectors: its error near 0 and π
+                    // (about 1e-8 rad) is far below the bearing noise, and it is several
+                    // times cheaper than the `atan2` form of `angle_between` over the m²
+                    // pairs of every cell.
+                    angle: ci.direction.dot(&cj.direction).clamp(-1.0, 1.0).acos(),
+                    bound: pair_angle_wander(ci, cj, pair.separation_m, radius)
+                        + ci.survey
+                        + cj.survey,
+                    // Which side of each other landmark a landmark is, seen from above.
+                    det: if up.is_some() {
+                        det_range(si, sj, &pair)
+                    } else {
+                        (-1.0, 1.0)
+                    },
+                });
             }
         }
+        let angles = full_matrix(&upper, m, 0.0, |p| p.angle, |a| a);
+        let bounds = full_matrix(&upper, m, 0.0, |p| p.bound, |b| b);
+        let dets = if up.is_some() {
+            full_matrix(&upper, m, (-1.0, 1.0), |p| p.det, |(lo, hi)| (-hi, -lo))
+        } else {
+            Vec::new()
+        };
         let words = m.div_ceil(64);
         let mut allowed = vec![0u64; n * words];
         // Per candidate: its elevation range over the cell, widened by the tilt tolerance,
