@@ -996,10 +996,10 @@ fn cell_data(
                 .map(|&index| db.landmarks()[index].position_in_world)
                 .collect();
             shared_pairs.reserve(g * g.saturating_sub(1) / 2);
-            for a in 0..g {
-                let la = &db.landmarks()[shared[a]];
-                for b in a + 1..g {
-                    let lb = &db.landmarks()[shared[b]];
+            for (a, &index_a) in shared.iter().enumerate() {
+                let la = &db.landmarks()[index_a];
+                for &index_b in &shared[a + 1..] {
+                    let lb = &db.landmarks()[index_b];
                     shared_pairs.push(PairTerms::new(
                         (&la.position_in_world, k * la.sigma_m),
                         (&lb.position_in_world, k * lb.sigma_m),
