@@ -823,7 +823,7 @@ impl DetSide {
 
 /// The terms of a landmark pair `(i, j)` (`i` first in database order) that do not depend on
 /// the cell: computed once per frame for the landmarks within reach of a small search area,
-/// shared by every cell.
+/// shared by every cell (per pair of each cell otherwise).
 #[derive(Clone, Copy)]
 struct PairTerms {
     /// `|Lᵢ − Lⱼ|`, metres (for [`pair_angle_wander`]).
@@ -852,7 +852,7 @@ impl PairTerms {
     }
 }
 
-/// [`det_range_from_above`] from its per-landmark and per-pair pieces: the same expressions
+/// `det_range_from_above` from its per-landmark and per-pair pieces: the same expressions
 /// in the same order, so the same bits.
 fn det_range(i: &DetSide, j: &DetSide, pair: &PairTerms) -> (f64, f64) {
     if i.range_lo <= 0.0 || j.range_lo <= 0.0 {
@@ -952,7 +952,7 @@ const REACH_SLACK: f64 = 1e-9;
 /// Per candidate, the pieces of the pair quantities that depend on one landmark
 /// ([`DetSide`]) are computed once, so that per pair only the angle (`acos`), the angle
 /// bound and the determinant range remain. Every value is computed by the same expressions
-/// as the direct per-pair formulas ([`pair_angle_wander`], [`det_range_from_above`]), so
+/// as the direct per-pair formulas ([`pair_angle_wander`], `det_range_from_above`), so
 /// the pair tables are bit for bit the same.
 #[inline(never)]
 fn cell_data(
