@@ -14,7 +14,7 @@ use crate::solvers::p3p;
 use crate::solvers::refine_pose::{
     RefineOptions, RefinedPose, angular_residual, refine_pose_with_sigmas,
 };
-use nalgebra::{Matrix2, Matrix6, Vector3};
+use nalgebra::{Matrix2, Matrix6, Vector2, Vector3};
 use rand::{RngExt, SeedableRng};
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
@@ -312,38 +312,6 @@ impl Search<'_> {
             (Some(a), Some(b)) => a == b,
             _ => true,
         }
-    }
-
-    /// The candidates of a cell, seen from its centre.
-    fn candidates(
-        &self,
-        centre: &Vector3<f64>,
-        radius: f64,
-        near: &mut Vec<usize>,
-    ) -> Vec<Candidate> {
-        self.db
-            .within(centre, self.options.visibility_range_m + radius, near);
-        let k = self.options.inlier_threshold_sigmas;
-        near.iter()
-            .filter_map(|&index| {
-                let l = &self.db.landmarks()[index];
-                let v = l.position_in_world - centre;
-                let range = v.norm();
-                let direction = try_unit(&v)?;
-                let wander = if range > radius {
-                    (radius / range).asin()
-                } else {
-                    std::f64::consts::PI
-                };
-                Some(Candidate {
-                    index,
-                    direction,
-                    range,
-                    wander,
-                    survey: k * l.sigma_m / range.max(radius),
-                })
-            })
-            .collect()
     }
 
     /// Whether a pose lies in the search area (widened by the position margin). The area is
@@ -882,6 +850,11 @@ fn in_box(t: &Vector3<f64>, min: &Vector3<f64>, max: &Vector3<f64>) -> bool {
 /// change it by at most `eᵢ |Lⱼ − x|_xy + eⱼ |Lᵢ − x|_xy + eᵢ eⱼ`; each range `ρ` is within
 /// `radius + e` of its value from the centre. The quotient's range follows by interval
 /// arithmetic, clamped to `[−1, 1]`; `[−1, 1]` when a range may reach 0.
+///
+/// The matcher evaluates it from its pieces ([`DetSide`] per landmark and cell,
+/// [`PairTerms`] per landmark pair) with [`det_range`]; this form is the reference the tests
+/// check.
+#[cfg(test)]
 fn det_range_from_above(
     (li, ei): (&Vector3<f64>, f64),
     (lj, ej): (&Vector3<f64>, f64),
@@ -889,22 +862,87 @@ fn det_range_from_above(
     radius: f64,
     half_horizontal: f64,
 ) -> (f64, f64) {
-    let from_i = (li - centre).xy();
-    let from_j = (lj - centre).xy();
-    let baseline = (lj - li).xy();
-    let n = from_i.perp(&baseline);
-    let reach = baseline.norm() * half_horizontal
-        + ei * (from_j.norm() + half_horizontal)
-        + ej * (from_i.norm() + half_horizontal)
-        + ei * ej;
-    let (n_lo, n_hi) = (n - reach, n + reach);
-    let (ri, rj) = ((li - centre).norm(), (lj - centre).norm());
-    let (ri_lo, rj_lo) = (ri - radius - ei, rj - radius - ej);
-    if ri_lo <= 0.0 || rj_lo <= 0.0 {
+    let side = |l: &Vector3<f64>, e: f64| {
+        let v = l - centre;
+        DetSide::new(&v, v.norm(), e, radius, half_horizontal)
+    };
+    let pair = PairTerms::new((li, ei), (lj, ej), half_horizontal);
+    det_range(&side(li, ei), &side(lj, ej), &pair)
+}
+
+/// The pieces of [`det_range`] that depend on one landmark and the cell (computed once per
+/// candidate of a cell instead of once per pair).
+#[derive(Clone, Copy)]
+struct DetSide {
+    /// `(L − centre)_xy`, metres.
+    from_xy: Vector2<f64>,
+    /// `|(L − centre)_xy| + half_horizontal`: the factor of the other landmark's survey bound
+    /// in the reach of `N`, metres.
+    widened: f64,
+    /// The survey bound `e = k σ`, metres.
+    survey_m: f64,
+    /// The least range over the cell, `ρ − radius − e` (no bound when `≤ 0`), metres.
+    range_lo: f64,
+    /// The largest range over the cell, `ρ + radius + e`, metres.
+    range_hi: f64,
+}
+
+impl DetSide {
+    /// `v = L − centre`, `range = |v|`, survey bound `e`.
+    fn new(v: &Vector3<f64>, range: f64, e: f64, radius: f64, half_horizontal: f64) -> Self {
+        let from_xy = v.xy();
+        Self {
+            from_xy,
+            widened: from_xy.norm() + half_horizontal,
+            survey_m: e,
+            range_lo: range - radius - e,
+            range_hi: range + radius + e,
+        }
+    }
+}
+
+/// The terms of a landmark pair `(i, j)` (`i` first in database order) that do not depend on
+/// the cell: computed once per frame for the landmarks within reach of a small search area,
+/// shared by every cell (per pair of each cell otherwise).
+#[derive(Clone, Copy)]
+struct PairTerms {
+    /// `|Lᵢ − Lⱼ|`, metres (for [`pair_angle_wander`]).
+    separation_m: f64,
+    /// `(Lⱼ − Lᵢ)_xy`, metres.
+    baseline: Vector2<f64>,
+    /// `|(Lⱼ − Lᵢ)_xy| · half_horizontal`, square metres.
+    spread: f64,
+    /// `eᵢ eⱼ`, square metres.
+    survey_product: f64,
+}
+
+impl PairTerms {
+    fn new(
+        (li, ei): (&Vector3<f64>, f64),
+        (lj, ej): (&Vector3<f64>, f64),
+        half_horizontal: f64,
+    ) -> Self {
+        let baseline = (lj - li).xy();
+        Self {
+            separation_m: (li - lj).norm(),
+            baseline,
+            spread: baseline.norm() * half_horizontal,
+            survey_product: ei * ej,
+        }
+    }
+}
+
+/// `det_range_from_above` from its per-landmark and per-pair pieces: the same expressions
+/// in the same order, so the same bits.
+fn det_range(i: &DetSide, j: &DetSide, pair: &PairTerms) -> (f64, f64) {
+    if i.range_lo <= 0.0 || j.range_lo <= 0.0 {
         return (-1.0, 1.0);
     }
-    let den_lo = ri_lo * rj_lo;
-    let den_hi = (ri + radius + ei) * (rj + radius + ej);
+    let n = i.from_xy.perp(&pair.baseline);
+    let reach = pair.spread + i.survey_m * j.widened + j.survey_m * i.widened + pair.survey_product;
+    let (n_lo, n_hi) = (n - reach, n + reach);
+    let den_lo = i.range_lo * j.range_lo;
+    let den_hi = i.range_hi * j.range_hi;
     let (lo, hi) = if n_lo >= 0.0 {
         (n_lo / den_hi, n_hi / den_lo)
     } else if n_hi <= 0.0 {
@@ -944,6 +982,284 @@ fn shuffle<T>(items: &mut [T], seed: u64) {
         let j = rng.random_range(0..=i);
         items.swap(i, j);
     }
+}
+
+/// The values of a candidate pair `(i, j)`, `i < j`, of a cell (see [`CellData`]).
+#[derive(Clone, Copy)]
+struct PairValues {
+    angle: f64,
+    bound: f64,
+    det: (f64, f64),
+}
+
+/// The row-major `m × m` matrix of one value of the pairs `upper` (`i < j`, row by row):
+/// `value(upper(i, j))` above the diagonal, `mirror` of it at `(j, i)`, `diagonal` on it.
+fn full_matrix<T: Copy>(
+    upper: &[PairValues],
+    m: usize,
+    diagonal: T,
+    value: impl Fn(&PairValues) -> T,
+    mirror: impl Fn(T) -> T,
+) -> Vec<T> {
+    // Position of the pair `(i, i + 1)` in `upper`.
+    let row = |i: usize| i * (2 * m - i - 1) / 2;
+    let mut full = Vec::with_capacity(m * m);
+    for i in 0..m {
+        full.extend((0..i).map(|j| mirror(value(&upper[row(j) + i - j - 1]))));
+        full.push(diagonal);
+        full.extend(upper[row(i)..row(i) + m - i - 1].iter().map(&value));
+    }
+    full
+}
+
+/// Above this many landmark pairs within reach of the whole search area, the [`PairTerms`]
+/// are computed per cell instead of once per frame: a cold start over a city would fill a
+/// table of every pair of its landmarks, mostly never in one cell together.
+const MAX_SHARED_PAIRS: usize = 1 << 15;
+
+/// Relative widening of the query for the landmarks within reach of the whole area, so that
+/// it holds every landmark a cell's own query would find despite rounding.
+const REACH_SLACK: f64 = 1e-9;
+
+/// The cells with at least three candidates, nearest to the area's centre first, each with
+/// its candidates seen from the centre, their pairwise angles, bounds and (with a known
+/// vertical) determinant ranges, and per detection the candidates it may be.
+///
+/// Work that does not depend on the cell is done once: the detections' elevations, and for a
+/// small area (a prior) the landmarks within reach of the whole area, gathered contiguously,
+/// with the [`PairTerms`] of each of their pairs; a cell's candidates are then those of
+/// them within its reach, by the same squared-distance test as [`LandmarkDb::within`].
+/// Per candidate, the pieces of the pair quantities that depend on one landmark
+/// ([`DetSide`]) are computed once, so that per pair only the angle (`acos`), the angle
+/// bound and the determinant range remain. Every value is computed by the same expressions
+/// as the direct per-pair formulas ([`pair_angle_wander`], `det_range_from_above`), so
+/// the pair tables are bit for bit the same.
+#[inline(never)]
+fn cell_data(
+    search: &Search,
+    centres: Vec<Vector3<f64>>,
+    area_centre: &Vector3<f64>,
+    area_reach: f64,
+    step: &Vector3<f64>,
+    radius: f64,
+) -> Vec<CellData> {
+    let db = search.db;
+    let options = search.options;
+    let up = search.up;
+    let n = search.detections.len();
+    let k = options.inlier_threshold_sigmas;
+    let mut keyed: Vec<(f64, Vector3<f64>)> = centres
+        .into_iter()
+        .map(|c| ((c - area_centre).norm(), c))
+        .collect();
+    keyed.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let half_horizontal = 0.5 * step.xy().norm();
+    let half_vertical = 0.5 * step.z;
+    // A cell's candidates: the landmarks within this distance of its centre.
+    let cell_reach = options.visibility_range_m + radius;
+
+    // The landmarks within reach of the whole area (a superset of every cell's candidates),
+    // with the terms of each of their pairs, when they are few enough.
+    let mut shared: Vec<usize> = Vec::new();
+    let mut shared_points: Vec<Vector3<f64>> = Vec::new();
+    let mut shared_pairs: Vec<PairTerms> = Vec::new();
+    if area_reach.is_finite() {
+        db.within(
+            area_centre,
+            area_reach * (1.0 + REACH_SLACK) + REACH_SLACK,
+            &mut shared,
+        );
+        let g = shared.len();
+        if g * g.saturating_sub(1) / 2 <= MAX_SHARED_PAIRS {
+            shared_points = shared
+                .iter()
+                .map(|&index| db.landmarks()[index].position_in_world)
+                .collect();
+            shared_pairs.reserve(g * g.saturating_sub(1) / 2);
+            for (a, &index_a) in shared.iter().enumerate() {
+                let la = &db.landmarks()[index_a];
+                for &index_b in &shared[a + 1..] {
+                    let lb = &db.landmarks()[index_b];
+                    shared_pairs.push(PairTerms::new(
+                        (&la.position_in_world, k * la.sigma_m),
+                        (&lb.position_in_world, k * lb.sigma_m),
+                        half_horizontal,
+                    ));
+                }
+            }
+        } else {
+            shared.clear();
+        }
+    }
+    let use_shared = !shared_points.is_empty();
+    // Start of row `a` of the triangular `shared_pairs` (the pairs `(a, b)`, `b > a`, row by
+    // row): pair `(a, b)` is at `row_start[a] + b − a − 1`.
+    let g = shared_points.len();
+    let row_start: Vec<usize> = (0..g).map(|a| a * (2 * g - a - 1) / 2).collect();
+
+    // Per detection: its elevation, with a known vertical.
+    let elevations: Vec<Option<f64>> = search
+        .directions
+        .iter()
+        .map(|d| up.map(|(u, _)| d.dot(&u).clamp(-1.0, 1.0).asin()))
+        .collect();
+
+    let mut near = Vec::new();
+    // Per candidate of the current cell: its position in `shared` and its [`DetSide`].
+    let mut slots: Vec<usize> = Vec::new();
+    let mut sides: Vec<DetSide> = Vec::new();
+    let mut upper: Vec<PairValues> = Vec::new();
+    let mut cell_data: Vec<CellData> = Vec::new();
+    for (_, centre) in &keyed {
+        // The candidates, seen from the centre, in increasing database index.
+        let mut cands: Vec<Candidate> = Vec::new();
+        slots.clear();
+        sides.clear();
+        let mut add = |index: usize, slot: usize, position: &Vector3<f64>| {
+            let v = position - centre;
+            let range = v.norm();
+            let Some(direction) = try_unit(&v) else {
+                return;
+            };
+            let wander = if range > radius {
+                (radius / range).asin()
+            } else {
+                std::f64::consts::PI
+            };
+            let e = k * db.landmarks()[index].sigma_m;
+            cands.push(Candidate {
+                index,
+                direction,
+                range,
+                wander,
+                survey: e / range.max(radius),
+            });
+            slots.push(slot);
+            sides.push(DetSide::new(&v, range, e, radius, half_horizontal));
+        };
+        if use_shared {
+            // `LandmarkDb::within`'s test: the squared distance (summed x, y, z) against
+            // the squared radius.
+            let limit = cell_reach * cell_reach;
+            for (slot, (&index, p)) in shared.iter().zip(&shared_points).enumerate() {
+                let d = p - centre;
+                if d.x * d.x + d.y * d.y + d.z * d.z <= limit {
+                    add(index, slot, p);
+                }
+            }
+        } else {
+            db.within(centre, cell_reach, &mut near);
+            for &index in &near {
+                add(index, 0, &db.landmarks()[index].position_in_world);
+            }
+        }
+        #[cfg(debug_assertions)]
+        if use_shared {
+            db.within(centre, cell_reach, &mut near);
+            near.retain(|&index| {
+                try_unit(&(db.landmarks()[index].position_in_world - centre)).is_some()
+            });
+            let found: Vec<usize> = cands.iter().map(|c| c.index).collect();
+            debug_assert_eq!(
+                found, near,
+                "the candidates of a cell from the shared landmarks"
+            );
+        }
+        if cands.len() < 3 {
+            continue;
+        }
+        let m = cands.len();
+        // The pairs `i < j`, row by row.
+        upper.clear();
+        for (i, (ci, si)) in cands.iter().zip(&sides).enumerate() {
+            // The shared pairs `(slots[i], b)`, `b > slots[i]`, from `b = slots[i] + 1` on.
+            let shared_row = if use_shared {
+                &shared_pairs[row_start[slots[i]]..]
+            } else {
+                &[]
+            };
+            let rest = cands[i + 1..]
+                .iter()
+                .zip(&sides[i + 1..])
+                .zip(&slots[i + 1..]);
+            for ((cj, sj), &slot_j) in rest {
+                let pair = if use_shared {
+                    shared_row[slot_j - slots[i] - 1]
+                } else {
+                    let (li, lj) = (&db.landmarks()[ci.index], &db.landmarks()[cj.index]);
+                    PairTerms::new(
+                        (&li.position_in_world, si.survey_m),
+                        (&lj.position_in_world, sj.survey_m),
+                        half_horizontal,
+                    )
+                };
+                upper.push(PairValues {
+                    // `acos` of the dot product of unit vectors: its error near 0 and π
+                    // (about 1e-8 rad) is far below the bearing noise, and it is several
+                    // times cheaper than the `atan2` form of `angle_between` over the m²
+                    // pairs of every cell.
+                    angle: ci.direction.dot(&cj.direction).clamp(-1.0, 1.0).acos(),
+                    bound: pair_angle_wander(ci, cj, pair.separation_m, radius)
+                        + ci.survey
+                        + cj.survey,
+                    // Which side of each other landmark a landmark is, seen from above.
+                    det: if up.is_some() {
+                        det_range(si, sj, &pair)
+                    } else {
+                        (-1.0, 1.0)
+                    },
+                });
+            }
+        }
+        let angles = full_matrix(&upper, m, 0.0, |p| p.angle, |a| a);
+        let bounds = full_matrix(&upper, m, 0.0, |p| p.bound, |b| b);
+        let dets = if up.is_some() {
+            full_matrix(&upper, m, (-1.0, 1.0), |p| p.det, |(lo, hi)| (-hi, -lo))
+        } else {
+            Vec::new()
+        };
+        let words = m.div_ceil(64);
+        let mut allowed = vec![0u64; n * words];
+        // Per candidate: its elevation range over the cell, widened by the tilt tolerance,
+        // the bearing noise and the survey error.
+        let gates: Vec<Option<(f64, f64)>> = cands
+            .iter()
+            .map(|cand| {
+                let (_, tol) = up?;
+                let v = db.landmarks()[cand.index].position_in_world - centre;
+                let (lo, hi) = elevation_range(&v, half_horizontal, half_vertical);
+                let margin = tol + search.noise + cand.survey;
+                Some((lo - margin, hi + margin))
+            })
+            .collect();
+        for (d, elevation) in elevations.iter().enumerate() {
+            for (i, cand) in cands.iter().enumerate() {
+                if !search.compatible(d, cand.index) {
+                    continue;
+                }
+                if let (Some(e), Some((lo, hi))) = (elevation, gates[i])
+                    && (*e < lo || *e > hi)
+                {
+                    continue;
+                }
+                bit_set(&mut allowed[d * words..(d + 1) * words], i);
+            }
+        }
+        let indices = cands.iter().map(|c| c.index).collect();
+        cell_data.push(CellData {
+            centre: *centre,
+            cands,
+            angles,
+            bounds,
+            dets,
+            indices,
+            words,
+            allowed,
+            slots: vec![NO_TABLE; n * n],
+            store: Vec::new(),
+        });
+    }
+    cell_data
 }
 
 pub(super) fn run(
@@ -1011,7 +1327,6 @@ pub(super) fn run(
     // The cells with candidates, each with its pairwise landmark angles, nearest to the
     // area's centre first.
     let mut near = Vec::new();
-    let mut cell_data: Vec<CellData> = Vec::new();
     let area_centre = area.center();
     // Fewer than three landmarks within reach of the whole area: no cell to visit.
     let reach =
@@ -1026,109 +1341,7 @@ pub(super) fn run(
             ));
         }
     }
-    let mut keyed: Vec<(f64, Vector3<f64>)> = centres
-        .into_iter()
-        .map(|c| ((c - area_centre).norm(), c))
-        .collect();
-    keyed.sort_by(|x, y| x.0.total_cmp(&y.0));
-    let centres: Vec<Vector3<f64>> = keyed.into_iter().map(|(_, c)| c).collect();
-    let half_horizontal = 0.5 * step.xy().norm();
-    let half_vertical = 0.5 * step.z;
-    for centre in &centres {
-        let cands = search.candidates(centre, radius, &mut near);
-        if cands.len() < 3 {
-            continue;
-        }
-        let m = cands.len();
-        let mut angles = vec![0.0; m * m];
-        let mut bounds = vec![0.0; m * m];
-        for i in 0..m {
-            let li = &db.landmarks()[cands[i].index].position_in_world;
-            for j in i + 1..m {
-                // `acos` of the dot product of unit vectors: its error near 0 and π (about
-                // 1e-8 rad) is far below the bearing noise, and it is several times cheaper
-                // than the `atan2` form of `angle_between` over the m² pairs of every cell.
-                let a = cands[i]
-                    .direction
-                    .dot(&cands[j].direction)
-                    .clamp(-1.0, 1.0)
-                    .acos();
-                angles[i * m + j] = a;
-                angles[j * m + i] = a;
-                let separation = (li - db.landmarks()[cands[j].index].position_in_world).norm();
-                let bound = pair_angle_wander(&cands[i], &cands[j], separation, radius)
-                    + cands[i].survey
-                    + cands[j].survey;
-                bounds[i * m + j] = bound;
-                bounds[j * m + i] = bound;
-            }
-        }
-        // Which side of each other landmark a landmark is, seen from above.
-        let mut dets = Vec::new();
-        if up.is_some() {
-            dets = vec![(-1.0, 1.0); m * m];
-            let k = options.inlier_threshold_sigmas;
-            for i in 0..m {
-                let li = &db.landmarks()[cands[i].index];
-                for j in i + 1..m {
-                    let lj = &db.landmarks()[cands[j].index];
-                    let (lo, hi) = det_range_from_above(
-                        (&li.position_in_world, k * li.sigma_m),
-                        (&lj.position_in_world, k * lj.sigma_m),
-                        centre,
-                        radius,
-                        half_horizontal,
-                    );
-                    dets[i * m + j] = (lo, hi);
-                    dets[j * m + i] = (-hi, -lo);
-                }
-            }
-        }
-        let words = m.div_ceil(64);
-        let mut allowed = vec![0u64; n * words];
-        // Per candidate: its elevation range over the cell, widened by the tilt tolerance,
-        // the bearing noise and the survey error.
-        let gates: Vec<Option<(f64, f64)>> = cands
-            .iter()
-            .map(|cand| {
-                let (_, tol) = up?;
-                let l = &db.landmarks()[cand.index];
-                let v = l.position_in_world - centre;
-                let (lo, hi) = elevation_range(&v, half_horizontal, half_vertical);
-                let margin = tol
-                    + search.noise
-                    + options.inlier_threshold_sigmas * l.sigma_m / v.norm().max(radius);
-                Some((lo - margin, hi + margin))
-            })
-            .collect();
-        for d in 0..n {
-            let elevation = up.map(|(u, _)| search.directions[d].dot(&u).clamp(-1.0, 1.0).asin());
-            for (i, cand) in cands.iter().enumerate() {
-                if !search.compatible(d, cand.index) {
-                    continue;
-                }
-                if let (Some(e), Some((lo, hi))) = (elevation, gates[i])
-                    && (e < lo || e > hi)
-                {
-                    continue;
-                }
-                bit_set(&mut allowed[d * words..(d + 1) * words], i);
-            }
-        }
-        let indices = cands.iter().map(|c| c.index).collect();
-        cell_data.push(CellData {
-            centre: *centre,
-            cands,
-            angles,
-            bounds,
-            dets,
-            indices,
-            words,
-            allowed,
-            slots: vec![NO_TABLE; n * n],
-            store: Vec::new(),
-        });
-    }
+    let mut cell_data = cell_data(&search, centres, &area_centre, reach, &step, radius);
     if cell_data.is_empty() {
         return Ok(MatchResult::failed(
             MatchStatus::NoLandmarksInRange,
