@@ -104,7 +104,7 @@ use nalgebra::{Matrix6, Vector3};
 pub const DEFAULT_VISIBILITY_RANGE_M: f64 = 80.0;
 
 /// Default edge of the search cells, metres.
-pub const DEFAULT_CELL_SIZE_M: f64 = 10.0;
+pub const DEFAULT_CELL_SIZE_M: f64 = 12.0;
 
 /// Default inlier threshold in (effective) standard deviations: see [`crate::fix::INLIER_THRESHOLD_SIGMAS`].
 pub const DEFAULT_INLIER_THRESHOLD_SIGMAS: f64 = crate::fix::INLIER_THRESHOLD_SIGMAS;
