@@ -796,6 +796,17 @@ impl Search<'_> {
         // the distant ones. One more pass from the refined pose at the hypothesis threshold
         // takes them in; it is kept, refitted once on its inliers, only if it explains more.
         let best = result?;
+        // Most refined poses explain as many detections at the hypothesis threshold as at
+        // the inlier threshold: then there is nothing to take in, and no fit to run.
+        self.db.within(
+            &best.pose.translation.vector,
+            self.options.visibility_range_m,
+            &mut near,
+        );
+        let (loose, _, _) = self.score(&best.pose, &near.clone(), HYPOTHESIS_THRESHOLD_FACTOR, 0);
+        if loose <= best.inliers {
+            return Some(best);
+        }
         match self.refine_pass(&best.pose, HYPOTHESIS_THRESHOLD_FACTOR, &mut near) {
             Some(wider) if wider.inliers > best.inliers => {
                 let refit = self.refine_pass(&wider.pose, 1.0, &mut near);
