@@ -212,7 +212,8 @@ pub const MAX_REFINED_HYPOTHESES: usize = 8;
 pub const REFINE_PASSES: usize = 3;
 
 /// Most cells of one search (bounds memory and time; a larger area is an error). A cold
-/// start over 4 km² of landmarks with 10 m cells and 6 layers of height needs 240,000.
+/// start over 4 km² of landmarks with 10 m cells and 6 layers of height needs 240,000
+/// (167,000 with the default 12 m cells).
 /// Each cell with candidates holds their pairwise angles and lazily built pair tables, so
 /// a search of this many cells takes about half a second before any P3P.
 pub const MAX_CELLS: usize = 250_000;
