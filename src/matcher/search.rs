@@ -1008,17 +1008,12 @@ fn fast_acos(x: f64) -> f64 {
 /// half_horizontal]`.
 fn elevation_range(v: &Vector3<f64>, half_horizontal: f64, half_vertical: f64) -> (f64, f64) {
     let d = v.xy().norm();
-    let ds = [(d - half_horizontal).max(0.0), d + half_horizontal];
-    let zs = [v.z - half_vertical, v.z + half_vertical];
-    let mut lo = f64::INFINITY;
-    let mut hi = f64::NEG_INFINITY;
-    for dz in zs {
-        for dh in ds {
-            let e = dz.atan2(dh);
-            lo = lo.min(e);
-            hi = hi.max(e);
-        }
-    }
+    let (d_lo, d_hi) = ((d - half_horizontal).max(0.0), d + half_horizontal);
+    let (dz_lo, dz_hi) = (v.z - half_vertical, v.z + half_vertical);
+    // Increasing in `dz`; in `d`, decreasing above the viewpoint and increasing below it:
+    // the two extreme corners, without evaluating the other two.
+    let lo = dz_lo.atan2(if dz_lo >= 0.0 { d_hi } else { d_lo });
+    let hi = dz_hi.atan2(if dz_hi >= 0.0 { d_lo } else { d_hi });
     (lo, hi)
 }
 
