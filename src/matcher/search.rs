@@ -160,6 +160,10 @@ struct CellData {
     store: Vec<u64>,
 }
 
+/// Initial capacity of the map of solved landmark triples (one detection triple's worth
+/// over a prior; a cold start grows it).
+const SOLVED_TRIPLES_CAPACITY: usize = 1024;
+
 /// A pair table not built yet.
 const NO_TABLE: u32 = u32::MAX;
 
@@ -1426,8 +1430,10 @@ pub(super) fn run(
     let mut survivors: Vec<[usize; 3]> = Vec::new();
     // Per landmark triple of the current detection triple: the range of `solved_poses` that
     // holds its P3P poses inside the area (with the cells' reach) and upright enough.
+    // A detection triple solves about 700 distinct landmark triples over a 30 m prior:
+    // sized once, so that it does not grow by rehashing during the first triple.
     let mut solved: HashMap<TripleKey, (usize, usize), BuildHasherDefault<TripleHasher>> =
-        HashMap::default();
+        HashMap::with_capacity_and_hasher(SOLVED_TRIPLES_CAPACITY, Default::default());
     let mut solved_poses: Vec<Pose> = Vec::new();
     let reach_min = area.min_in_world.add_scalar(-(radius + position_margin));
     let reach_max = area.max_in_world.add_scalar(radius + position_margin);
