@@ -356,25 +356,29 @@ impl Search<'_> {
         let table = &mut cell.store[start..];
         let allowed_a = &cell.allowed[a * words..(a + 1) * words];
         let allowed_b = &cell.allowed[b * words..(b + 1) * words];
+        // Each test is evaluated whole and its outcome OR-ed in as a bit: about one pair in
+        // eight passes, at random, so a branch per test would be mispredicted often.
         for_each_bit(allowed_a, |i| {
             let row = &mut table[i * words..(i + 1) * words];
             let angles = &cell.angles[i * m..(i + 1) * m];
             let bounds = &cell.bounds[i * m..(i + 1) * m];
-            let dets = match pair_det {
-                Some(_) => &cell.dets[i * m..(i + 1) * m],
-                None => &[],
-            };
-            for_each_bit(allowed_b, |j| {
-                if i != j
-                    && (theta - angles[j]).abs() <= tol + bounds[j]
-                    && pair_det.is_none_or(|(d, margin)| {
-                        dets.get(j)
-                            .is_none_or(|&(lo, hi)| d + margin >= lo && d - margin <= hi)
-                    })
-                {
-                    bit_set(row, j);
+            match pair_det {
+                Some((d, margin)) => {
+                    let dets = &cell.dets[i * m..(i + 1) * m];
+                    for_each_bit(allowed_b, |j| {
+                        let (lo, hi) = dets[j];
+                        let pass = (i != j)
+                            & ((theta - angles[j]).abs() <= tol + bounds[j])
+                            & (d + margin >= lo)
+                            & (d - margin <= hi);
+                        row[j / 64] |= u64::from(pass) << (j % 64);
+                    });
                 }
-            });
+                None => for_each_bit(allowed_b, |j| {
+                    let pass = (i != j) & ((theta - angles[j]).abs() <= tol + bounds[j]);
+                    row[j / 64] |= u64::from(pass) << (j % 64);
+                }),
+            }
         });
     }
 
