@@ -136,15 +136,9 @@ struct DetectionModel {
 struct CellData {
     centre: Vector3<f64>,
     cands: Vec<Candidate>,
-    /// Pairwise candidate angles seen from the centre (row-major `m × m`).
-    angles: Vec<f64>,
-    /// How far each pairwise angle may be from `angles` over the cell, plus the survey terms
-    /// (row-major `m × m`, radians): [`pair_angle_wander`] `+ surveyᵢ + surveyⱼ`.
-    bounds: Vec<f64>,
-    /// With a known vertical: per candidate pair `(i, j)` (row-major `m × m`) the range of
-    /// `det[z, uᵢ(x), uⱼ(x)]` (unit directions to the landmarks) over the cell
-    /// ([`det_range_from_above`]). Empty without a known vertical.
-    dets: Vec<(f64, f64)>,
+    /// What the pair tables test of each candidate pair `(i, j)`, row-major `m × m` (the
+    /// diagonal unused): one record per pair, so a table row reads one contiguous run.
+    pairs: Vec<PairValues>,
     /// Database indices of the candidates.
     indices: Vec<usize>,
     /// 64-bit words per candidate bitset.
@@ -360,22 +354,20 @@ impl Search<'_> {
         // eight passes, at random, so a branch per test would be mispredicted often.
         for_each_bit(allowed_a, |i| {
             let row = &mut table[i * words..(i + 1) * words];
-            let angles = &cell.angles[i * m..(i + 1) * m];
-            let bounds = &cell.bounds[i * m..(i + 1) * m];
+            let pairs = &cell.pairs[i * m..(i + 1) * m];
             match pair_det {
-                Some((d, margin)) => {
-                    let dets = &cell.dets[i * m..(i + 1) * m];
-                    for_each_bit(allowed_b, |j| {
-                        let (lo, hi) = dets[j];
-                        let pass = (i != j)
-                            & ((theta - angles[j]).abs() <= tol + bounds[j])
-                            & (d + margin >= lo)
-                            & (d - margin <= hi);
-                        row[j / 64] |= u64::from(pass) << (j % 64);
-                    });
-                }
+                Some((d, margin)) => for_each_bit(allowed_b, |j| {
+                    let p = &pairs[j];
+                    let (lo, hi) = p.det;
+                    let pass = (i != j)
+                        & ((theta - p.angle).abs() <= tol + p.bound)
+                        & (d + margin >= lo)
+                        & (d - margin <= hi);
+                    row[j / 64] |= u64::from(pass) << (j % 64);
+                }),
                 None => for_each_bit(allowed_b, |j| {
-                    let pass = (i != j) & ((theta - angles[j]).abs() <= tol + bounds[j]);
+                    let p = &pairs[j];
+                    let pass = (i != j) & ((theta - p.angle).abs() <= tol + p.bound);
                     row[j / 64] |= u64::from(pass) << (j % 64);
                 }),
             }
@@ -1034,32 +1026,35 @@ fn shuffle<T>(items: &mut [T], seed: u64) {
     }
 }
 
-/// The values of a candidate pair `(i, j)`, `i < j`, of a cell (see [`CellData`]).
+/// What the pair tables test of a candidate pair `(i, j)` of a cell (see [`CellData`]).
 #[derive(Clone, Copy)]
 struct PairValues {
+    /// The angle between the directions to the two candidates from the cell centre, radians.
     angle: f64,
+    /// How far the angle may be from `angle` over the cell, plus the survey terms and the
+    /// error of [`fast_acos`], radians: [`pair_angle_wander`] `+ surveyᵢ + surveyⱼ`.
     bound: f64,
+    /// With a known vertical, the range of `det[z, uᵢ(x), uⱼ(x)]` (unit directions to the
+    /// landmarks) over the cell ([`det_range_from_above`]); `(−1, 1)` without.
     det: (f64, f64),
 }
 
-/// The row-major `m × m` matrix of one value of the pairs `upper` (`i < j`, row by row):
-/// `value(upper(i, j))` above the diagonal, `mirror` of it at `(j, i)`, `diagonal` on it.
-fn full_matrix<T: Copy>(
-    upper: &[PairValues],
-    m: usize,
-    diagonal: T,
-    value: impl Fn(&PairValues) -> T,
-    mirror: impl Fn(T) -> T,
-) -> Vec<T> {
-    // Position of the pair `(i, i + 1)` in `upper`.
-    let row = |i: usize| i * (2 * m - i - 1) / 2;
-    let mut full = Vec::with_capacity(m * m);
-    for i in 0..m {
-        full.extend((0..i).map(|j| mirror(value(&upper[row(j) + i - j - 1]))));
-        full.push(diagonal);
-        full.extend(upper[row(i)..row(i) + m - i - 1].iter().map(&value));
+impl PairValues {
+    /// The value on the diagonal, which the tables never test (`i ≠ j`).
+    const DIAGONAL: Self = Self {
+        angle: 0.0,
+        bound: 0.0,
+        det: (-1.0, 1.0),
+    };
+
+    /// The values of the pair `(j, i)`: the side of the pair changes sign.
+    fn mirrored(self) -> Self {
+        let (lo, hi) = self.det;
+        Self {
+            det: (-hi, -lo),
+            ..self
+        }
     }
-    full
 }
 
 /// Above this many landmark pairs within reach of the whole search area, the [`PairTerms`]
@@ -1158,7 +1153,6 @@ fn cell_data(
     // Per candidate of the current cell: its position in `shared` and its [`DetSide`].
     let mut slots: Vec<usize> = Vec::new();
     let mut sides: Vec<DetSide> = Vec::new();
-    let mut upper: Vec<PairValues> = Vec::new();
     let mut cell_data: Vec<CellData> = Vec::new();
     for (_, centre) in &keyed {
         // The candidates, seen from the centre, in increasing database index.
@@ -1219,8 +1213,9 @@ fn cell_data(
             continue;
         }
         let m = cands.len();
-        // The pairs `i < j`, row by row.
-        upper.clear();
+        // Each pair `i < j` is computed once and written at `(i, j)` and, mirrored, at
+        // `(j, i)`: the angle and its bound are symmetric, the side of the pair changes sign.
+        let mut pairs = vec![PairValues::DIAGONAL; m * m];
         for (i, (ci, si)) in cands.iter().zip(&sides).enumerate() {
             // The shared pairs `(slots[i], b)`, `b > slots[i]`, from `b = slots[i] + 1` on.
             let shared_row = if use_shared {
@@ -1232,7 +1227,7 @@ fn cell_data(
                 .iter()
                 .zip(&sides[i + 1..])
                 .zip(&slots[i + 1..]);
-            for ((cj, sj), &slot_j) in rest {
+            for (j, ((cj, sj), &slot_j)) in (i + 1..).zip(rest) {
                 let pair = if use_shared {
                     shared_row[slot_j - slots[i] - 1]
                 } else {
@@ -1243,7 +1238,7 @@ fn cell_data(
                         half_horizontal,
                     )
                 };
-                upper.push(PairValues {
+                let values = PairValues {
                     // The `acos` of the dot product of unit vectors (its error near 0 and π,
                     // about 1e-8 rad, is far below the bearing noise), by a polynomial:
                     // libm's `acos` took an eighth of a prior frame's time.
@@ -1258,16 +1253,11 @@ fn cell_data(
                     } else {
                         (-1.0, 1.0)
                     },
-                });
+                };
+                pairs[i * m + j] = values;
+                pairs[j * m + i] = values.mirrored();
             }
         }
-        let angles = full_matrix(&upper, m, 0.0, |p| p.angle, |a| a);
-        let bounds = full_matrix(&upper, m, 0.0, |p| p.bound, |b| b);
-        let dets = if up.is_some() {
-            full_matrix(&upper, m, (-1.0, 1.0), |p| p.det, |(lo, hi)| (-hi, -lo))
-        } else {
-            Vec::new()
-        };
         let words = m.div_ceil(64);
         let mut allowed = vec![0u64; n * words];
         // Per candidate: its elevation range over the cell, widened by the tilt tolerance,
@@ -1299,9 +1289,7 @@ fn cell_data(
         cell_data.push(CellData {
             centre: *centre,
             cands,
-            angles,
-            bounds,
-            dets,
+            pairs,
             indices,
             words,
             allowed,
