@@ -154,6 +154,10 @@ struct CellData {
     store: Vec<u64>,
 }
 
+/// The determinant of three unit bearings has a reliable sign when it exceeds this many
+/// times the per-bearing noise bound (each bearing moves by at most the bound).
+const RELIABLE_DETERMINANT_NOISES: f64 = 3.0;
+
 /// Initial capacity of the map of solved landmark triples (one detection triple's worth
 /// over a prior; a cold start grows it).
 const SOLVED_TRIPLES_CAPACITY: usize = 1024;
@@ -601,7 +605,10 @@ impl Search<'_> {
                         angle_between(&dirs[t[p]], &dirs[t[(p + 1) % 3]]) >= MIN_TRIPLE_ANGLE_RAD
                     });
                     let determinant = dirs[t[0]].dot(&dirs[t[1]].cross(&dirs[t[2]]));
-                    if spread && determinant.abs() > 3.0 * self.noise && !tried.contains(&t) {
+                    if spread
+                        && determinant.abs() > RELIABLE_DETERMINANT_NOISES * self.noise
+                        && !tried.contains(&t)
+                    {
                         return Some(t);
                     }
                 }
@@ -1494,7 +1501,7 @@ pub(super) fn run(
             let det_b = bearings[0].dot(&bearings[1].cross(&bearings[2]));
             // The orientation test is used only when the sign of the detections' determinant is
             // beyond the noise (each bearing moves by at most `noise`).
-            let det_b_reliable = det_b.abs() > 3.0 * search.noise;
+            let det_b_reliable = det_b.abs() > RELIABLE_DETERMINANT_NOISES * search.noise;
             let extensions: Vec<usize> = core
                 .iter()
                 .copied()
