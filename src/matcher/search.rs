@@ -758,13 +758,37 @@ impl Search<'_> {
     /// landmark in range under `pose` are fitted, and the fitted pose is re-scored against
     /// every landmark in range at the inlier threshold.
     fn refine_pass(&mut self, pose: &Pose, factor: f64, near: &mut Vec<usize>) -> Option<Refined> {
-        let range = self.options.visibility_range_m;
-        self.db.within(&pose.translation.vector, range, near);
-        let (_, _, assignment) = self.score(pose, &near.clone(), factor, 0);
-        let fitted = self.fit(pose, &assignment)?;
+        let (_, _, assignment) = self.score_in_range(pose, factor, near);
+        self.fit_and_rescore(pose, &assignment, near)
+    }
+
+    /// The detections within `factor` × the inlier threshold of a landmark in range of
+    /// `pose`, scored as by [`Search::score`] (`near` receives the landmarks in range).
+    fn score_in_range(
+        &mut self,
+        pose: &Pose,
+        factor: f64,
+        near: &mut Vec<usize>,
+    ) -> (usize, f64, Vec<Option<usize>>) {
+        self.db.within(
+            &pose.translation.vector,
+            self.options.visibility_range_m,
+            near,
+        );
+        self.score(pose, &near.clone(), factor, 0)
+    }
+
+    /// Fits `pose` to the links of `assignment` and re-scores the fitted pose against every
+    /// landmark in range at the inlier threshold.
+    fn fit_and_rescore(
+        &mut self,
+        pose: &Pose,
+        assignment: &[Option<usize>],
+        near: &mut Vec<usize>,
+    ) -> Option<Refined> {
+        let fitted = self.fit(pose, assignment)?;
         let pose = fitted.world_from_rig;
-        self.db.within(&pose.translation.vector, range, near);
-        let (inliers, cost, assignment) = self.score(&pose, &near.clone(), 1.0, 0);
+        let (inliers, cost, assignment) = self.score_in_range(&pose, 1.0, near);
         Some(Refined {
             pose,
             covariance: fitted.covariance,
@@ -805,16 +829,12 @@ impl Search<'_> {
         let best = result?;
         // Most refined poses explain as many detections at the hypothesis threshold as at
         // the inlier threshold: then there is nothing to take in, and no fit to run.
-        self.db.within(
-            &best.pose.translation.vector,
-            self.options.visibility_range_m,
-            &mut near,
-        );
-        let (loose, _, _) = self.score(&best.pose, &near.clone(), HYPOTHESIS_THRESHOLD_FACTOR, 0);
+        let (loose, _, assignment) =
+            self.score_in_range(&best.pose, HYPOTHESIS_THRESHOLD_FACTOR, &mut near);
         if loose <= best.inliers {
             return Some(best);
         }
-        match self.refine_pass(&best.pose, HYPOTHESIS_THRESHOLD_FACTOR, &mut near) {
+        match self.fit_and_rescore(&best.pose, &assignment, &mut near) {
             Some(wider) if wider.inliers > best.inliers => {
                 let refit = self.refine_pass(&wider.pose, 1.0, &mut near);
                 Some(match refit {
@@ -1082,10 +1102,11 @@ const REACH_SLACK: f64 = 1e-9;
 /// with the [`PairTerms`] of each of their pairs; a cell's candidates are then those of
 /// them within its reach, by the same squared-distance test as [`LandmarkDb::within`].
 /// Per candidate, the pieces of the pair quantities that depend on one landmark
-/// ([`DetSide`]) are computed once, so that per pair only the angle (`acos`), the angle
-/// bound and the determinant range remain. Every value is computed by the same expressions
-/// as the direct per-pair formulas ([`pair_angle_wander`], `det_range_from_above`), so
-/// the pair tables are bit for bit the same.
+/// ([`DetSide`]) are computed once, so that per pair only the angle ([`fast_acos`]), the
+/// angle bound and the determinant range remain. The bound and the determinant range come
+/// from the same expressions as the direct per-pair formulas ([`pair_angle_wander`],
+/// `det_range_from_above`); the angle is within [`FAST_ACOS_MAX_ERROR_RAD`] of libm's, which
+/// the bound includes.
 #[inline(never)]
 fn cell_data(
     search: &Search,
@@ -1396,16 +1417,7 @@ pub(super) fn run(
     }
 
     // Detection triples from the core detections, in a fixed pseudo-random order.
-    let usable: Vec<bool> = (0..n)
-        .map(|d| {
-            cell_data.iter().any(|cell| {
-                cell.allowed[d * cell.words..(d + 1) * cell.words]
-                    .iter()
-                    .any(|&w| w != 0)
-            })
-        })
-        .collect();
-    let n_usable = usable.iter().filter(|&&u| u).count();
+    //
     // Per detection, the (cell, candidate) pairs it may be: the size of its rows and columns
     // in the pair tables (0 for an unusable detection).
     let allowed_counts: Vec<usize> = (0..n)
@@ -1421,6 +1433,8 @@ pub(super) fn run(
                 .sum()
         })
         .collect();
+    let usable: Vec<bool> = allowed_counts.iter().map(|&c| c > 0).collect();
+    let n_usable = usable.iter().filter(|&&u| u).count();
     // The confirmation triples run so far (sorted detection indices).
     let mut confirmations_tried: Vec<[usize; 3]> = Vec::new();
     // Every usable detection in farthest-point order; round `r` draws its triples from the
