@@ -196,6 +196,8 @@ struct ConclusionCache {
     taken: Vec<(usize, usize)>,
     /// Scratch of [`Search::score_in_range`]: the landmarks in range.
     near: Vec<usize>,
+    /// Scratch of [`Search::score`]: the unit directions of the landmarks in range.
+    units: Vec<Vector3<f64>>,
 }
 
 /// Whether two poses are equal bit for bit (the key of the refinement cache).
@@ -337,6 +339,8 @@ struct Search<'a> {
     noise: f64,
     kept: Vec<Hypothesis>,
     hypotheses: usize,
+    /// Scratch of [`Search::score`]: per landmark in range, its offset in the rig frame,
+    /// index and range.
     scratch_dirs: Vec<(Vector3<f64>, usize, f64)>,
     scratch_best: Vec<(usize, f64)>,
     scratch_offsets: Vec<(Vector3<f64>, f64)>,
@@ -488,41 +492,49 @@ impl Search<'_> {
         let allowed_misses = self.detections.len().saturating_sub(min_needed);
         let mut misses = 0;
         let range = self.options.visibility_range_m;
+        // Per landmark in range: its offset in the rig frame, index and range, and its
+        // direction (in a compact array of its own for the nearest-direction scan).
         self.scratch_dirs.clear();
+        let units = &mut self.conclusion.units;
+        units.clear();
         for &index in landmarks {
             let l = &self.db.landmarks()[index];
             let v = pose.inverse_transform_vector(&(l.position_in_world - pose.translation.vector));
             let r = v.norm();
             if r <= range && r > 0.0 {
-                let sigma = (self.options.sigma_rad.powi(2) + (l.sigma_m / r).powi(2)).sqrt();
-                let threshold = threshold_factor * self.options.inlier_threshold_sigmas * sigma;
-                self.scratch_dirs
-                    .push((v / r, index, threshold.min(std::f64::consts::PI)));
+                self.scratch_dirs.push((v, index, r));
+                units.push(v / r);
             }
         }
         // Per detection: the nearest landmark direction (for rays with an origin offset the
-        // direction from the camera centre is used).
+        // direction from the camera centre is used), the first of equals.
         self.scratch_best.clear();
         let mut assignment = vec![None; self.detections.len()];
         for (d, det) in self.detections.iter().enumerate() {
-            let mut best: Option<(usize, f64, f64)> = None;
-            for &(dir, index, threshold) in &self.scratch_dirs {
-                let dot = dir.dot(&self.directions[d]);
-                if best.is_none_or(|b| dot > b.1) {
-                    best = Some((index, dot, threshold));
-                }
-            }
-            let Some((index, _, threshold)) = best else {
+            let b = &self.directions[d];
+            let Some(first) = self.conclusion.units.first() else {
                 misses += 1;
                 if misses > allowed_misses {
                     return (0, f64::INFINITY, assignment);
                 }
                 continue;
             };
-            let point = self.db.landmarks()[index].position_in_world;
-            let predicted =
-                pose.inverse_transform_vector(&(point - pose.translation.vector)) - det.ray.origin;
-            let residual = angle_between(&predicted, &self.directions[d]);
+            let mut best_dot = first.dot(b);
+            let mut best = 0;
+            for (k, dir) in self.conclusion.units.iter().enumerate().skip(1) {
+                let dot = dir.dot(b);
+                if dot > best_dot {
+                    best_dot = dot;
+                    best = k;
+                }
+            }
+            let (v, index, r) = self.scratch_dirs[best];
+            let sigma_m = self.db.landmarks()[index].sigma_m;
+            let sigma = (self.options.sigma_rad.powi(2) + (sigma_m / r).powi(2)).sqrt();
+            let threshold = (threshold_factor * self.options.inlier_threshold_sigmas * sigma)
+                .min(std::f64::consts::PI);
+            let predicted = v - det.ray.origin;
+            let residual = angle_between(&predicted, b);
             if residual <= threshold {
                 assignment[d] = Some(index);
                 self.scratch_best.push((d, residual / threshold));
