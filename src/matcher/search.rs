@@ -168,7 +168,7 @@ const NO_TABLE: u32 = u32::MAX;
 
 /// How far (in visibility ranges) a pose may be from the centre of a gathered landmark set
 /// for the landmarks in its range to be taken from that set ([`Search::in_range`]).
-const RANGE_SET_SLACK: f64 = 0.5;
+const RANGE_SET_SLACK: f64 = 0.25;
 /// Relative widening of a gathered landmark set's radius: far above the rounding of the
 /// distances compared, so that the set provably holds every landmark in range of a pose
 /// within [`RANGE_SET_SLACK`] of its centre.
@@ -206,7 +206,12 @@ fn same_bits(a: &Pose, b: &Pose) -> bool {
         .matrix()
         .iter()
         .chain(a.translation.vector.iter())
-        .zip(b.rotation.matrix().iter().chain(b.translation.vector.iter()))
+        .zip(
+            b.rotation
+                .matrix()
+                .iter()
+                .chain(b.translation.vector.iter()),
+        )
         .all(|(x, y)| x.to_bits() == y.to_bits())
 }
 
@@ -684,9 +689,13 @@ impl Search<'_> {
     /// Refines `pose` on the links of `assignment` (σ inflated by the survey σ); `None` with
     /// fewer than four links or when the refinement fails.
     fn fit(&self, pose: &Pose, assignment: &[Option<usize>]) -> Option<RefinedPose> {
-        let mut rays: Vec<Ray> = Vec::new();
-        let mut points = Vec::new();
-        let mut sigmas = Vec::new();
+        let links = assignment.iter().flatten().count();
+        if links < 4 {
+            return None;
+        }
+        let mut rays: Vec<Ray> = Vec::with_capacity(links);
+        let mut points = Vec::with_capacity(links);
+        let mut sigmas = Vec::with_capacity(links);
         for (d, a) in assignment.iter().enumerate() {
             if let Some(index) = *a {
                 let l = &self.db.landmarks()[index];
@@ -695,9 +704,6 @@ impl Search<'_> {
                 points.push(l.position_in_world);
                 sigmas.push(self.sigma_of(l, range));
             }
-        }
-        if rays.len() < 4 {
-            return None;
         }
         let options = RefineOptions {
             sigma_rad: self.options.sigma_rad,
@@ -880,7 +886,10 @@ impl Search<'_> {
             return;
         }
         let sets = &mut self.conclusion.ranges;
-        let k = match sets.iter().position(|(c, _)| (position - c).norm() <= slack) {
+        let k = match sets
+            .iter()
+            .position(|(c, _)| (position - c).norm() <= slack)
+        {
             Some(k) => k,
             None => {
                 if sets.len() >= MAX_RANGE_SETS {
