@@ -116,4 +116,87 @@ impl LandmarkDb {
         );
         out.sort_unstable();
     }
+
+    /// Replaces the contents of `out` by the indices of `candidates` whose landmarks lie
+    /// within `radius_m` of `center`, in the order of `candidates`, by the same test as
+    /// [`Self::within`], bit for bit (the R*-tree's squared distance, summed in its order,
+    /// against `radius_m²`). With `candidates` in increasing order and holding every index
+    /// that [`Self::within`] returns for `center` and `radius_m` (e.g. the result of a
+    /// query with a larger radius around a nearby centre), `out` is exactly that result,
+    /// without an R*-tree query. Indices beyond the database are skipped.
+    pub fn within_among(
+        &self,
+        candidates: &[usize],
+        center: &Vector3<f64>,
+        radius_m: f64,
+        out: &mut Vec<usize>,
+    ) {
+        out.clear();
+        if !(radius_m.is_finite() && radius_m >= 0.0 && crate::geometry::is_finite(center)) {
+            return;
+        }
+        let max_distance_2 = radius_m * radius_m;
+        out.extend(candidates.iter().copied().filter(|&k| {
+            self.landmarks.get(k).is_some_and(|l| {
+                let p = &l.position_in_world;
+                let (dx, dy, dz) = (p.x - center.x, p.y - center.y, p.z - center.z);
+                // rstar's `length_2`: a fold from zero of `cur * cur + acc`.
+                dz * dz + (dy * dy + (dx * dx + 0.0)) <= max_distance_2
+            })
+        }));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::RngExt;
+
+    /// `within_among` over a superset gives exactly `within`, also for landmarks on the
+    /// sphere's boundary (radius equal to a landmark's distance, to the last bit).
+    #[test]
+    fn within_among_a_superset_is_within() {
+        let mut rng = crate::synthetic::rng(11);
+        let landmarks: Vec<DbLandmark> = (0..2000)
+            .map(|k| DbLandmark {
+                id: k.to_string(),
+                position_in_world: Vector3::new(
+                    rng.random_range(-300.0..300.0),
+                    rng.random_range(-300.0..300.0),
+                    rng.random_range(0.0..20.0),
+                ),
+                class: None,
+                sigma_m: 0.0,
+            })
+            .collect();
+        let db = LandmarkDb::new(landmarks).unwrap();
+        let (mut all, mut near, mut among) = (Vec::new(), Vec::new(), Vec::new());
+        let mut boundary_cases = 0;
+        for trial in 0..200 {
+            let centre = Vector3::new(
+                rng.random_range(-100.0..100.0),
+                rng.random_range(-100.0..100.0),
+                rng.random_range(0.0..10.0),
+            );
+            // Every tenth trial puts a landmark exactly on the boundary.
+            let radius = if trial % 10 == 0 {
+                boundary_cases += 1;
+                (db.landmarks()[trial].position_in_world - centre).norm()
+            } else {
+                rng.random_range(0.0..120.0)
+            };
+            db.within(&centre, radius + 50.0, &mut all);
+            db.within(&centre, radius, &mut near);
+            let shifted = centre + Vector3::new(20.0, -20.0, 5.0);
+            db.within_among(&all, &centre, radius, &mut among);
+            assert_eq!(among, near, "trial {trial}");
+            // A superset from another centre that still covers the sphere.
+            db.within(&shifted, radius + 40.0, &mut all);
+            db.within_among(&all, &centre, radius, &mut among);
+            assert_eq!(among, near, "trial {trial} (shifted)");
+        }
+        assert_eq!(boundary_cases, 20);
+        db.within_among(&[0, 1], &Vector3::new(f64::NAN, 0.0, 0.0), 10.0, &mut among);
+        assert!(among.is_empty());
+    }
 }

@@ -107,6 +107,7 @@ const NO_LANDMARKS_IN_RANGE: &str =
     "fewer than 3 landmarks within the visibility range of the search area";
 
 /// A refined hypothesis.
+#[derive(Clone)]
 struct Refined {
     pose: Pose,
     covariance: Matrix6<f64>,
@@ -164,6 +165,55 @@ const SOLVED_TRIPLES_CAPACITY: usize = 1024;
 
 /// A pair table not built yet.
 const NO_TABLE: u32 = u32::MAX;
+
+/// How far (in visibility ranges) a pose may be from the centre of a gathered landmark set
+/// for the landmarks in its range to be taken from that set ([`Search::in_range`]).
+const RANGE_SET_SLACK: f64 = 0.25;
+/// Relative widening of a gathered landmark set's radius: far above the rounding of the
+/// distances compared, so that the set provably holds every landmark in range of a pose
+/// within [`RANGE_SET_SLACK`] of its centre.
+const RANGE_SET_ROUNDING: f64 = 1e-9;
+/// At most this many gathered landmark sets per frame (the oldest is dropped).
+const MAX_RANGE_SETS: usize = 4;
+/// Relative widening of the widest gate angle below which a landmark is skipped in
+/// [`Search::link_probabilities`] without computing its residual: the residual's norm is
+/// the angle to within 1e-12 relative, far inside this margin.
+const LINK_GATE_ANGLE_MARGIN: f64 = 1e-3;
+/// Absolute margin on the cosine of that angle, far above the rounding of the dot product.
+const LINK_GATE_COS_MARGIN: f64 = 1e-12;
+
+/// What the conclusion keeps between its calls in a frame (early-stop checks conclude
+/// more than once) and scratch space of the scoring.
+#[derive(Default)]
+struct ConclusionCache {
+    /// Landmark sets gathered with one R*-tree query each: (centre, indices of the
+    /// landmarks within `(1 + RANGE_SET_SLACK) ·` the visibility range of it, widened by
+    /// [`RANGE_SET_ROUNDING`], in increasing order).
+    ranges: Vec<(Vector3<f64>, Vec<usize>)>,
+    /// Each hypothesis pose refined so far (bit for bit) and what [`Search::refine`] gave.
+    refined: Vec<(Pose, Option<Refined>)>,
+    /// Scratch of [`Search::score`]: the (landmark, detection) links taken so far.
+    taken: Vec<(usize, usize)>,
+    /// Scratch of [`Search::score_in_range`]: the landmarks in range.
+    near: Vec<usize>,
+    /// Scratch of [`Search::score`]: the unit directions of the landmarks in range.
+    units: Vec<Vector3<f64>>,
+}
+
+/// Whether two poses are equal bit for bit (the key of the refinement cache).
+fn same_bits(a: &Pose, b: &Pose) -> bool {
+    a.rotation
+        .matrix()
+        .iter()
+        .chain(a.translation.vector.iter())
+        .zip(
+            b.rotation
+                .matrix()
+                .iter()
+                .chain(b.translation.vector.iter()),
+        )
+        .all(|(x, y)| x.to_bits() == y.to_bits())
+}
 
 impl CellData {
     /// The whole (built) table of the ordered detection pair `key`.
@@ -294,6 +344,8 @@ struct Search<'a> {
     noise: f64,
     kept: Vec<Hypothesis>,
     hypotheses: usize,
+    /// Scratch of [`Search::score`]: per landmark in range, its offset in the rig frame,
+    /// index and range.
     scratch_dirs: Vec<(Vector3<f64>, usize, f64)>,
     scratch_best: Vec<(usize, f64)>,
     scratch_offsets: Vec<(Vector3<f64>, f64)>,
@@ -303,6 +355,8 @@ struct Search<'a> {
     area_min: Vector3<f64>,
     /// See `area_min`.
     area_max: Vector3<f64>,
+    /// Landmark sets, refinements and scratch kept for the conclusion.
+    conclusion: ConclusionCache,
 }
 
 impl Search<'_> {
@@ -443,41 +497,49 @@ impl Search<'_> {
         let allowed_misses = self.detections.len().saturating_sub(min_needed);
         let mut misses = 0;
         let range = self.options.visibility_range_m;
+        // Per landmark in range: its offset in the rig frame, index and range, and its
+        // direction (in a compact array of its own for the nearest-direction scan).
         self.scratch_dirs.clear();
+        let units = &mut self.conclusion.units;
+        units.clear();
         for &index in landmarks {
             let l = &self.db.landmarks()[index];
             let v = pose.inverse_transform_vector(&(l.position_in_world - pose.translation.vector));
             let r = v.norm();
             if r <= range && r > 0.0 {
-                let sigma = (self.options.sigma_rad.powi(2) + (l.sigma_m / r).powi(2)).sqrt();
-                let threshold = threshold_factor * self.options.inlier_threshold_sigmas * sigma;
-                self.scratch_dirs
-                    .push((v / r, index, threshold.min(std::f64::consts::PI)));
+                self.scratch_dirs.push((v, index, r));
+                units.push(v / r);
             }
         }
         // Per detection: the nearest landmark direction (for rays with an origin offset the
-        // direction from the camera centre is used).
+        // direction from the camera centre is used), the first of equals.
         self.scratch_best.clear();
         let mut assignment = vec![None; self.detections.len()];
         for (d, det) in self.detections.iter().enumerate() {
-            let mut best: Option<(usize, f64, f64)> = None;
-            for &(dir, index, threshold) in &self.scratch_dirs {
-                let dot = dir.dot(&self.directions[d]);
-                if best.is_none_or(|b| dot > b.1) {
-                    best = Some((index, dot, threshold));
-                }
-            }
-            let Some((index, _, threshold)) = best else {
+            let b = &self.directions[d];
+            let Some(first) = self.conclusion.units.first() else {
                 misses += 1;
                 if misses > allowed_misses {
                     return (0, f64::INFINITY, assignment);
                 }
                 continue;
             };
-            let point = self.db.landmarks()[index].position_in_world;
-            let predicted =
-                pose.inverse_transform_vector(&(point - pose.translation.vector)) - det.ray.origin;
-            let residual = angle_between(&predicted, &self.directions[d]);
+            let mut best_dot = first.dot(b);
+            let mut best = 0;
+            for (k, dir) in self.conclusion.units.iter().enumerate().skip(1) {
+                let dot = dir.dot(b);
+                if dot > best_dot {
+                    best_dot = dot;
+                    best = k;
+                }
+            }
+            let (v, index, r) = self.scratch_dirs[best];
+            let sigma_m = self.db.landmarks()[index].sigma_m;
+            let sigma = (self.options.sigma_rad.powi(2) + (sigma_m / r).powi(2)).sqrt();
+            let threshold = (threshold_factor * self.options.inlier_threshold_sigmas * sigma)
+                .min(std::f64::consts::PI);
+            let predicted = v - det.ray.origin;
+            let residual = angle_between(&predicted, b);
             if residual <= threshold {
                 assignment[d] = Some(index);
                 self.scratch_best.push((d, residual / threshold));
@@ -491,13 +553,13 @@ impl Search<'_> {
         // One-to-one per camera: the smaller normalised residual keeps a landmark. Rays with
         // different origins come from different cameras of the rig, and a landmark in the
         // overlap of two cameras is rightly seen by both.
-        let mut order: Vec<usize> = (0..self.scratch_best.len()).collect();
-        order.sort_by(|&x, &y| self.scratch_best[x].1.total_cmp(&self.scratch_best[y].1));
-        let mut taken: Vec<(usize, usize)> = Vec::with_capacity(order.len());
+        // A stable sort: links of equal normalised residual keep their detection order.
+        self.scratch_best.sort_by(|x, y| x.1.total_cmp(&y.1));
+        let mut taken = std::mem::take(&mut self.conclusion.taken);
+        taken.clear();
         let mut inliers = 0;
         let mut cost = 0.0;
-        for k in order {
-            let (d, r) = self.scratch_best[k];
+        for &(d, r) in &self.scratch_best {
             let Some(index) = assignment[d] else { continue };
             let origin = &self.detections[d].ray.origin;
             if taken
@@ -511,6 +573,7 @@ impl Search<'_> {
                 cost += r * r;
             }
         }
+        self.conclusion.taken = taken;
         (inliers, cost, assignment)
     }
 
@@ -626,9 +689,13 @@ impl Search<'_> {
     /// Refines `pose` on the links of `assignment` (σ inflated by the survey σ); `None` with
     /// fewer than four links or when the refinement fails.
     fn fit(&self, pose: &Pose, assignment: &[Option<usize>]) -> Option<RefinedPose> {
-        let mut rays: Vec<Ray> = Vec::new();
-        let mut points = Vec::new();
-        let mut sigmas = Vec::new();
+        let links = assignment.iter().flatten().count();
+        if links < 4 {
+            return None;
+        }
+        let mut rays: Vec<Ray> = Vec::with_capacity(links);
+        let mut points = Vec::with_capacity(links);
+        let mut sigmas = Vec::with_capacity(links);
         for (d, a) in assignment.iter().enumerate() {
             if let Some(index) = *a {
                 let l = &self.db.landmarks()[index];
@@ -637,9 +704,6 @@ impl Search<'_> {
                 points.push(l.position_in_world);
                 sigmas.push(self.sigma_of(l, range));
             }
-        }
-        if rays.len() < 4 {
-            return None;
         }
         let options = RefineOptions {
             sigma_rad: self.options.sigma_rad,
@@ -653,14 +717,10 @@ impl Search<'_> {
     /// explain, at least one, spread over the sphere) and the probability that a landmark in
     /// range is detected (inliers over landmarks in range, at least
     /// [`MIN_DETECTION_PROBABILITY`]).
-    fn detection_model(&self, best: &Refined) -> DetectionModel {
+    fn detection_model(&mut self, best: &Refined) -> DetectionModel {
         let n = self.detections.len();
         let mut near = Vec::new();
-        self.db.within(
-            &best.pose.translation.vector,
-            self.options.visibility_range_m,
-            &mut near,
-        );
+        self.in_range(&best.pose.translation.vector, &mut near);
         let gate2 = self.options.inlier_threshold_sigmas.powi(2);
         let chi2 = gate2 * (best.cost - n.saturating_sub(best.inliers) as f64).max(0.0);
         let dof = (2 * best.inliers).saturating_sub(6).max(1) as f64;
@@ -702,11 +762,42 @@ impl Search<'_> {
     /// leverage, and so a small density. The alternatives are a false detection (density
     /// `c` per steradian) and every other landmark within the gate of the detection (their
     /// own densities `fₖ`): `P = P_d·fᵢ / (c + P_d·(fᵢ + Σₖ fₖ))`.
+    ///
+    /// The landmarks in range are gathered once per call with their σ². A landmark whose
+    /// direction is farther from the detection's than the widest gate angle (the gate times
+    /// the largest σ, widened by [`LINK_GATE_ANGLE_MARGIN`]) is outside the gate, since the
+    /// residual's norm is that angle: it is skipped without computing its residual.
     fn link_probabilities(&self, best: &Refined, model: &DetectionModel) -> Vec<Option<f64>> {
         let pose = &best.pose;
         let two_pi = 2.0 * std::f64::consts::PI;
         let gate2 = self.options.inlier_threshold_sigmas.powi(2);
         let p = model.detection_probability;
+        let position = pose.translation.vector;
+        // Per landmark in range: index, position and σ² (as `sigma_of` gives it).
+        let others: Vec<(usize, Vector3<f64>, f64)> = model
+            .near
+            .iter()
+            .map(|&k| {
+                let other = &self.db.landmarks()[k];
+                let range_k = (other.position_in_world - position).norm();
+                (
+                    k,
+                    other.position_in_world,
+                    self.sigma_of(other, range_k).powi(2),
+                )
+            })
+            .collect();
+        let widest = self.options.inlier_threshold_sigmas
+            * others.iter().fold(0.0, |m: f64, o| m.max(o.2)).sqrt()
+            * (1.0 + LINK_GATE_ANGLE_MARGIN);
+        // A landmark is skipped when `b · v < cos_widest · |v|` (`v` its offset from the ray
+        // origin in the rig frame, `b` the unit bearing); never beyond a right angle.
+        let cos_widest = if widest < std::f64::consts::FRAC_PI_2 {
+            widest.cos() - LINK_GATE_COS_MARGIN
+        } else {
+            f64::NEG_INFINITY
+        };
+        let rig_from_world = pose.rotation.matrix().transpose();
         best.assignment
             .iter()
             .enumerate()
@@ -729,22 +820,24 @@ impl Search<'_> {
                     // The pose is (nearly) determined by this link alone: it cannot be checked.
                     _ => 0.0,
                 };
-                let mut others = 0.0;
-                for &k in &model.near {
+                let bearing = &self.directions[d];
+                let mut rivals = 0.0;
+                for &(k, point, sigma_k2) in &others {
                     if k == index {
                         continue;
                     }
-                    let other = &self.db.landmarks()[k];
-                    let range_k = (other.position_in_world - pose.translation.vector).norm();
-                    let sigma_k2 = self.sigma_of(other, range_k).powi(2);
-                    if let Some((rk, _)) = angular_residual(pose, ray, &other.position_in_world) {
+                    let v = rig_from_world * (point - position) - ray.origin;
+                    if bearing.dot(&v) < cos_widest * v.norm() {
+                        continue;
+                    }
+                    if let Some((rk, _)) = angular_residual(pose, ray, &point) {
                         let chi2 = rk.norm_squared() / sigma_k2;
                         if chi2 <= gate2 {
-                            others += (-0.5 * chi2).exp() / (two_pi * sigma_k2);
+                            rivals += (-0.5 * chi2).exp() / (two_pi * sigma_k2);
                         }
                     }
                 }
-                let probability = p * own / (model.clutter_per_sr + p * (own + others));
+                let probability = p * own / (model.clutter_per_sr + p * (own + rivals));
                 Some(if probability.is_finite() {
                     probability
                 } else {
@@ -770,12 +863,45 @@ impl Search<'_> {
         factor: f64,
         near: &mut Vec<usize>,
     ) -> (usize, f64, Vec<Option<usize>>) {
-        self.db.within(
-            &pose.translation.vector,
-            self.options.visibility_range_m,
-            near,
-        );
-        self.score(pose, &near.clone(), factor, 0)
+        self.in_range(&pose.translation.vector, near);
+        self.score(pose, near, factor, 0)
+    }
+
+    /// Replaces `out` by the landmarks within the visibility range of `position`, exactly
+    /// as [`LandmarkDb::within`] gives them (same set, same order), but taken from a set
+    /// gathered by one R*-tree query for every position within [`RANGE_SET_SLACK`]
+    /// visibility ranges of its centre: the conclusion scores some twenty poses per frame,
+    /// most a few metres apart.
+    ///
+    /// The set holds every landmark in range of `position`: one within `range` of it is
+    /// within `range + slack` of the set's centre (triangle inequality), and the set's
+    /// radius exceeds that by [`RANGE_SET_ROUNDING`] relative, far beyond the rounding of
+    /// the distances; [`LandmarkDb::within_among`] then applies the R*-tree's own test.
+    fn in_range(&mut self, position: &Vector3<f64>, out: &mut Vec<usize>) {
+        let range = self.options.visibility_range_m;
+        let slack = RANGE_SET_SLACK * range;
+        let radius = (range + slack) * (1.0 + RANGE_SET_ROUNDING);
+        if !(crate::geometry::is_finite(position) && range >= 0.0 && radius.is_finite()) {
+            self.db.within(position, range, out);
+            return;
+        }
+        let sets = &mut self.conclusion.ranges;
+        let k = match sets
+            .iter()
+            .position(|(c, _)| (position - c).norm() <= slack)
+        {
+            Some(k) => k,
+            None => {
+                if sets.len() >= MAX_RANGE_SETS {
+                    sets.remove(0);
+                }
+                let mut set = Vec::new();
+                self.db.within(position, radius, &mut set);
+                sets.push((*position, set));
+                sets.len() - 1
+            }
+        };
+        self.db.within_among(&sets[k].1, position, range, out);
     }
 
     /// Fits `pose` to the links of `assignment` and re-scores the fitted pose against every
@@ -799,17 +925,42 @@ impl Search<'_> {
         })
     }
 
+    /// [`Search::refine`], once per pose and frame: the early-stop checks conclude more than
+    /// once, mostly on the same hypotheses, and a refinement depends on its pose alone.
+    fn refine_once(&mut self, start: &Pose) -> Option<Refined> {
+        if let Some((_, r)) = self
+            .conclusion
+            .refined
+            .iter()
+            .find(|(p, _)| same_bits(p, start))
+        {
+            return r.clone();
+        }
+        let r = self.refine(start);
+        self.conclusion.refined.push((*start, r.clone()));
+        r
+    }
+
     /// Refines a pose with its inliers and re-scores it against every landmark in range:
     /// a first pass at the hypothesis threshold, then passes at the inlier threshold until
     /// the inliers stop changing (at most [`REFINE_PASSES`]).
     fn refine(&mut self, start: &Pose) -> Option<Refined> {
-        let mut near = Vec::new();
+        let mut near = std::mem::take(&mut self.conclusion.near);
+        let refined = self.refine_with(start, &mut near);
+        self.conclusion.near = near;
+        refined
+    }
+
+    /// [`Search::refine`] with `near` as scratch. A pass from a pose that the pass before
+    /// scored at the inlier threshold fits the links of that score (scoring the same pose
+    /// at the same threshold again would give them once more).
+    fn refine_with(&mut self, start: &Pose, near: &mut Vec<usize>) -> Option<Refined> {
         let mut result: Option<Refined> = None;
-        let mut factor = HYPOTHESIS_THRESHOLD_FACTOR;
         for _ in 0..REFINE_PASSES {
-            let from = result.as_ref().map_or(*start, |r| r.pose);
-            let pass = self.refine_pass(&from, factor, &mut near)?;
-            factor = 1.0;
+            let pass = match &result {
+                None => self.refine_pass(start, HYPOTHESIS_THRESHOLD_FACTOR, near)?,
+                Some(r) => self.fit_and_rescore(&r.pose, &r.assignment, near)?,
+            };
             match &result {
                 // A pass that explains fewer detections than the one before drifts away
                 // (three nearly collinear lamps fix the height badly): the better pass is
@@ -830,13 +981,14 @@ impl Search<'_> {
         // Most refined poses explain as many detections at the hypothesis threshold as at
         // the inlier threshold: then there is nothing to take in, and no fit to run.
         let (loose, _, assignment) =
-            self.score_in_range(&best.pose, HYPOTHESIS_THRESHOLD_FACTOR, &mut near);
+            self.score_in_range(&best.pose, HYPOTHESIS_THRESHOLD_FACTOR, near);
         if loose <= best.inliers {
             return Some(best);
         }
-        match self.fit_and_rescore(&best.pose, &assignment, &mut near) {
+        match self.fit_and_rescore(&best.pose, &assignment, near) {
             Some(wider) if wider.inliers > best.inliers => {
-                let refit = self.refine_pass(&wider.pose, 1.0, &mut near);
+                // `wider` was scored at the inlier threshold: refit on those links.
+                let refit = self.fit_and_rescore(&wider.pose, &wider.assignment, near);
                 Some(match refit {
                     Some(r) if r.inliers >= wider.inliers => r,
                     _ => wider,
@@ -1388,6 +1540,7 @@ pub(super) fn run(
         up,
         area_min: area.min_in_world.add_scalar(-position_margin),
         area_max: area.max_in_world.add_scalar(position_margin),
+        conclusion: ConclusionCache::default(),
     };
 
     // The cells with candidates, each with its pairwise landmark angles, nearest to the
@@ -1680,8 +1833,13 @@ fn conclude(search: &mut Search, cells: usize) -> MatchResult {
         r.hypotheses = hypotheses;
         r
     };
-    let kept = search.kept.clone();
-    if kept.is_empty() {
+    let starts: Vec<Pose> = search
+        .kept
+        .iter()
+        .take(MAX_REFINED_HYPOTHESES)
+        .map(|h| h.pose)
+        .collect();
+    if starts.is_empty() {
         return failed(
             MatchStatus::NoMatch,
             "no hypothesis consistent with the detections".to_string(),
@@ -1692,24 +1850,20 @@ fn conclude(search: &mut Search, cells: usize) -> MatchResult {
     // those outside the area.
     let mut unrefined: Vec<(usize, f64, Pose)> = Vec::new();
     let mut near = Vec::new();
-    for h in kept.iter().take(MAX_REFINED_HYPOTHESES) {
-        if refined.iter().any(|r| same_pose(&r.pose, &h.pose)) {
+    for start in &starts {
+        if refined.iter().any(|r| same_pose(&r.pose, start)) {
             continue;
         }
-        let (pose, scored) = match search.refine(&h.pose) {
+        let (pose, scored) = match search.refine_once(start) {
             Some(r) if search.within_area(&r.pose) => {
                 refined.push(r);
                 continue;
             }
             Some(r) => (r.pose, (r.inliers, r.cost)),
             None => {
-                search.db.within(
-                    &h.pose.translation.vector,
-                    options.visibility_range_m,
-                    &mut near,
-                );
-                let (inliers, cost, _) = search.score(&h.pose, &near, 1.0, 0);
-                (h.pose, (inliers, cost + (n - inliers) as f64))
+                search.in_range(&start.translation.vector, &mut near);
+                let (inliers, cost, _) = search.score(start, &near, 1.0, 0);
+                (*start, (inliers, cost + (n - inliers) as f64))
             }
         };
         // A pose outside the area (the prior), e.g. one that refinement moved away, cannot
