@@ -55,13 +55,37 @@ impl Hasher for TripleHasher {
 struct Candidate {
     index: usize,
     direction: Vector3<f64>,
-    /// Distance from the cell centre, metres.
-    range: f64,
     /// Half-width of the direction's wander over the cell, radians (π when the landmark is
     /// within the cell's ball).
     wander: f64,
     /// The survey term `k σ_m / max(range, radius)`, radians.
     survey: f64,
+    /// `1 / (range − radius)`, the reciprocal of the least range over the cell's ball
+    /// (`+∞` when the landmark is within the ball), 1/metres.
+    inv_near: f64,
+}
+
+impl Candidate {
+    /// A landmark at `range` (metres) in the unit `direction` from a cell centre, for a cell
+    /// ball of `radius`, with the survey term `survey` (radians).
+    fn new(index: usize, direction: Vector3<f64>, range: f64, radius: f64, survey: f64) -> Self {
+        let inside = range <= radius;
+        Self {
+            index,
+            direction,
+            wander: if inside {
+                std::f64::consts::PI
+            } else {
+                (radius / range).asin()
+            },
+            survey,
+            inv_near: if inside {
+                f64::INFINITY
+            } else {
+                1.0 / (range - radius)
+            },
+        }
+    }
 }
 
 /// The largest change of the angle between the directions to two landmarks `i, j` when the
@@ -79,13 +103,13 @@ struct Candidate {
 ///
 /// The second is much tighter for two landmarks in similar directions (a row of lamps
 /// along a street, seen end-on): their separation is far less than `ρᵢ + ρⱼ`.
+///
+/// Evaluated with the candidates' reciprocal least ranges (no division per pair): when a
+/// landmark is within the ball its `inv_near` is `+∞`, the product is `+∞` or NaN, and
+/// `f64::min` keeps the first bound.
 fn pair_angle_wander(ci: &Candidate, cj: &Candidate, separation: f64, radius: f64) -> f64 {
     let sum = ci.wander + cj.wander;
-    if ci.range > radius && cj.range > radius {
-        sum.min(radius * separation / ((ci.range - radius) * (cj.range - radius)))
-    } else {
-        sum
-    }
+    sum.min(radius * separation * ci.inv_near * cj.inv_near)
 }
 
 /// One scored hypothesis.
@@ -1073,8 +1097,10 @@ struct DetSide {
     survey_m: f64,
     /// The least range over the cell, `ρ − radius − e` (no bound when `≤ 0`), metres.
     range_lo: f64,
-    /// The largest range over the cell, `ρ + radius + e`, metres.
-    range_hi: f64,
+    /// `1 / range_lo` (meaningful when `range_lo > 0`), 1/metres.
+    inv_lo: f64,
+    /// `1 / (ρ + radius + e)`, the reciprocal of the largest range over the cell, 1/metres.
+    inv_hi: f64,
 }
 
 impl DetSide {
@@ -1086,7 +1112,8 @@ impl DetSide {
             widened: from_xy.norm() + half_horizontal,
             survey_m: e,
             range_lo: range - radius - e,
-            range_hi: range + radius + e,
+            inv_lo: 1.0 / (range - radius - e),
+            inv_hi: 1.0 / (range + radius + e),
         }
     }
 }
@@ -1131,15 +1158,12 @@ fn det_range(i: &DetSide, j: &DetSide, pair: &PairTerms) -> (f64, f64) {
     let n = i.from_xy.perp(&pair.baseline);
     let reach = pair.spread + i.survey_m * j.widened + j.survey_m * i.widened + pair.survey_product;
     let (n_lo, n_hi) = (n - reach, n + reach);
-    let den_lo = i.range_lo * j.range_lo;
-    let den_hi = i.range_hi * j.range_hi;
-    let (lo, hi) = if n_lo >= 0.0 {
-        (n_lo / den_hi, n_hi / den_lo)
-    } else if n_hi <= 0.0 {
-        (n_lo / den_lo, n_hi / den_hi)
-    } else {
-        (n_lo / den_lo, n_hi / den_lo)
-    };
+    // Reciprocals of the least and the largest products of the two ranges: each end of the
+    // quotient's range divides by the one that makes it extreme for its sign.
+    let inv_den_lo = i.inv_lo * j.inv_lo;
+    let inv_den_hi = i.inv_hi * j.inv_hi;
+    let lo = n_lo * if n_lo >= 0.0 { inv_den_hi } else { inv_den_lo };
+    let hi = n_hi * if n_hi <= 0.0 { inv_den_hi } else { inv_den_lo };
     (lo.max(-1.0), hi.min(1.0))
 }
 
@@ -1345,19 +1369,14 @@ fn cell_data(
             let Some(direction) = try_unit(&v) else {
                 return;
             };
-            let wander = if range > radius {
-                (radius / range).asin()
-            } else {
-                std::f64::consts::PI
-            };
             let e = k * db.landmarks()[index].sigma_m;
-            cands.push(Candidate {
+            cands.push(Candidate::new(
                 index,
                 direction,
                 range,
-                wander,
-                survey: e / range.max(radius),
-            });
+                radius,
+                e / range.max(radius),
+            ));
             slots.push(slot);
             sides.push(DetSide::new(&v, range, e, radius, half_horizontal));
         };
@@ -2097,17 +2116,7 @@ mod tests {
             };
             let candidate = |l: &Vector3<f64>| {
                 let range = l.norm();
-                Candidate {
-                    index: 0,
-                    direction: l / range,
-                    range,
-                    wander: if range > radius {
-                        (radius / range).asin()
-                    } else {
-                        std::f64::consts::PI
-                    },
-                    survey: 0.0,
-                }
+                Candidate::new(0, l / range, range, radius, 0.0)
             };
             let (ci, cj) = (candidate(&li), candidate(&lj));
             let bound = pair_angle_wander(&ci, &cj, (li - lj).norm(), radius);
