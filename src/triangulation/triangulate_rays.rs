@@ -188,7 +188,9 @@ fn two_rays(obs: &[RayObservation; 2]) -> Result<TriangulatedPoint, Triangulatio
     let nn = n.norm_squared();
     // The general solver's conditioning test `det A ≥ MIN_RECIPROCAL_CONDITION · tr A · e₂(A)`
     // with `det A = 2|n|²`, `tr A = 4`, `e₂(A) = |n|² + 4` (sums of the eigenvalues' products).
-    if !(nn >= 2.0 * MIN_RECIPROCAL_CONDITION * (nn + 4.0)) {
+    // (False for a NaN `nn`.)
+    let conditioned = nn >= 2.0 * MIN_RECIPROCAL_CONDITION * (nn + 4.0);
+    if !conditioned {
         return projector_sum_exact(obs);
     }
     let inv = 1.0 / nn;
