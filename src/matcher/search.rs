@@ -960,25 +960,20 @@ impl Search<'_> {
         {
             return r.clone();
         }
-        let r = self.refine(start);
+        let mut near = std::mem::take(&mut self.conclusion.near);
+        let r = self.refine(start, &mut near);
+        self.conclusion.near = near;
         self.conclusion.refined.push((*start, r.clone()));
         r
     }
 
-    /// Refines a pose with its inliers and re-scores it against every landmark in range:
-    /// a first pass at the hypothesis threshold, then passes at the inlier threshold until
-    /// the inliers stop changing (at most [`REFINE_PASSES`]).
-    fn refine(&mut self, start: &Pose) -> Option<Refined> {
-        let mut near = std::mem::take(&mut self.conclusion.near);
-        let refined = self.refine_with(start, &mut near);
-        self.conclusion.near = near;
-        refined
-    }
-
-    /// [`Search::refine`] with `near` as scratch. A pass from a pose that the pass before
-    /// scored at the inlier threshold fits the links of that score (scoring the same pose
-    /// at the same threshold again would give them once more).
-    fn refine_with(&mut self, start: &Pose, near: &mut Vec<usize>) -> Option<Refined> {
+    /// Refines a pose with its inliers and re-scores it against every landmark in range
+    /// (`near` is scratch): a first pass at the hypothesis threshold, then passes at the
+    /// inlier threshold until the inliers stop changing (at most [`REFINE_PASSES`]). A pass
+    /// from a pose that the pass before scored at the inlier threshold fits the links of
+    /// that score (scoring the same pose at the same threshold again would give them once
+    /// more).
+    fn refine(&mut self, start: &Pose, near: &mut Vec<usize>) -> Option<Refined> {
         let mut result: Option<Refined> = None;
         for _ in 0..REFINE_PASSES {
             let pass = match &result {
