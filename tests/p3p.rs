@@ -298,3 +298,60 @@ fn noisy_and_near_degenerate_samples_never_give_non_finite_or_improper_poses() {
     assert!(solutions > n / 2);
     assert!(worst_orthonormality < 1e-9 && worst_det < 1e-9);
 }
+
+/// Bearings prepared once (`P3pBearings`) give `p3p`'s solutions bit for bit, for many
+/// landmark triples seen along one detection triple (the matcher's use) and on degenerate
+/// input; a degenerate bearing triple cannot be prepared, and `p3p` has no solution for it.
+#[test]
+fn prepared_bearings_give_the_same_solutions_bit_for_bit() {
+    use vgps::geometry::PoseSolutions;
+    use vgps::solvers::p3p::{P3pBearings, p3p_prepared_into};
+    let mut r = rng(16);
+    let sigma = 0.5f64.to_radians();
+    let mut out = PoseSolutions::new();
+    let mut compared = 0usize;
+    for i in 0..2_000 {
+        let p = P3pProblem::random_omni(&mut r, SCENE);
+        let p = if i % 2 == 0 {
+            p
+        } else {
+            p.with_noise(&mut r, sigma)
+        };
+        let bearings = p.bearings_in_rig.map(|b| b * (1.0 + 9.0 * (i % 7) as f64));
+        let Some(prepared) = P3pBearings::try_new(&bearings) else {
+            panic!("random bearings {bearings:?} not prepared");
+        };
+        // The detection triple against its own points and against other landmark triples.
+        for k in 0..5 {
+            let points = if k == 0 {
+                p.points_in_world
+            } else {
+                P3pProblem::random_omni(&mut r, SCENE).points_in_world
+            };
+            p3p_prepared_into(&prepared, &points, &mut out);
+            let direct = p3p(&bearings, &points);
+            assert_eq!(out.len(), direct.len());
+            for (a, b) in out.iter().zip(&direct) {
+                let bits = |s: &Pose| {
+                    let mut v: Vec<u64> = s.rotation.matrix().iter().map(|x| x.to_bits()).collect();
+                    v.extend(s.translation.vector.iter().map(|x| x.to_bits()));
+                    v
+                };
+                assert_eq!(bits(a), bits(b));
+            }
+            compared += direct.len();
+        }
+    }
+    assert!(compared > 5_000, "{compared} solutions compared");
+    let p = P3pProblem::random_omni(&mut r, SCENE);
+    let b = p.bearings_in_rig;
+    for bad in [
+        [b[0], b[1], b[0] * 2.0],
+        [b[0], -b[0], b[2]],
+        [b[0], Vector3::zeros(), b[2]],
+        [b[0], b[1], Vector3::new(f64::NAN, 0.0, 1.0)],
+    ] {
+        assert!(P3pBearings::try_new(&bad).is_none(), "{bad:?}");
+        assert!(p3p(&bad, &p.points_in_world).is_empty());
+    }
+}

@@ -9,8 +9,8 @@ use super::{
     MatchEstimate, MatchOptions, MatchResult, MatchStatus, REFINE_PASSES, STOP_CONFIRMATIONS,
     STOP_MIN_INLIER_FRACTION, SearchArea, UP_CHECK_MARGIN_RAD,
 };
-use crate::geometry::{Pose, Ray, angle_between, rotation_angle, try_unit};
-use crate::solvers::p3p;
+use crate::geometry::{Pose, PoseSolutions, Ray, angle_between, rotation_angle, try_unit};
+use crate::solvers::p3p::{P3pBearings, p3p_prepared_into};
 use crate::solvers::refine_pose::{
     RefineOptions, RefinedPose, angular_residual, refine_pose_with_sigmas,
 };
@@ -1496,6 +1496,30 @@ fn cell_data(
     cell_data
 }
 
+/// The P3P poses of every landmark triple in `points` seen along `bearings` (`None`:
+/// degenerate bearings, no pose) that pass `keep`, in `poses`, and each triple's range of
+/// them (start, count) in `ranges`, in the order of `points`.
+fn solve_triples(
+    bearings: Option<&P3pBearings>,
+    points: &[[Vector3<f64>; 3]],
+    keep: impl Fn(&Pose) -> bool,
+    poses: &mut Vec<Pose>,
+    ranges: &mut Vec<(usize, usize)>,
+) {
+    poses.clear();
+    ranges.clear();
+    let mut solutions = PoseSolutions::new();
+    for triple in points {
+        let start = poses.len();
+        match bearings {
+            Some(bearings) => p3p_prepared_into(bearings, triple, &mut solutions),
+            None => solutions.clear(),
+        }
+        poses.extend(solutions.iter().filter(|pose| keep(pose)));
+        ranges.push((start, poses.len() - start));
+    }
+}
+
 pub(super) fn run(
     db: &LandmarkDb,
     detections: &[Detection],
@@ -1614,9 +1638,16 @@ pub(super) fn run(
     // holds its P3P poses inside the area (with the cells' reach) and upright enough.
     // A detection triple solves about 700 distinct landmark triples over a 30 m prior:
     // sized once, so that it does not grow by rehashing during the first triple.
-    let mut solved: HashMap<TripleKey, (usize, usize), BuildHasherDefault<TripleHasher>> =
+    let mut solved: HashMap<TripleKey, usize, BuildHasherDefault<TripleHasher>> =
         HashMap::with_capacity_and_hasher(SOLVED_TRIPLES_CAPACITY, Default::default());
+    // Per detection triple: the distinct landmark triples to solve (their points), and the
+    // landmark triples of the cells in visiting order (cell, candidates, index into the
+    // former).
+    let mut to_solve: Vec<[Vector3<f64>; 3]> = Vec::new();
+    let mut work: Vec<(usize, [usize; 3], usize)> = Vec::new();
+    // The kept poses of every distinct landmark triple, and each one's range of them.
     let mut solved_poses: Vec<Pose> = Vec::new();
+    let mut solved_ranges: Vec<(usize, usize)> = Vec::new();
     let reach_min = area.min_in_world.add_scalar(-(radius + position_margin));
     let reach_max = area.max_in_world.add_scalar(radius + position_margin);
     // A pose is upright enough when its up is within `tol + UP_CHECK_MARGIN_RAD` of the
@@ -1675,7 +1706,6 @@ pub(super) fn run(
                 }
             };
             solved.clear();
-            solved_poses.clear();
             let bearings = [
                 search.directions[a],
                 search.directions[b],
@@ -1690,7 +1720,15 @@ pub(super) fn run(
                 .copied()
                 .filter(|&l| l != a && l != b && l != c)
                 .collect();
-            for cell in &mut cell_data {
+            // `None` for (anti)parallel detections: no landmark triple has a pose for them.
+            let prepared = P3pBearings::try_new(&bearings);
+            // The landmark triples of every cell in visiting order, and the distinct ones
+            // among them to solve (each once per detection triple: the same landmark triple
+            // passes in neighbouring cells).
+            work.clear();
+            to_solve.clear();
+            let mut budget_spent = false;
+            'cells: for (cell_index, cell) in cell_data.iter_mut().enumerate() {
                 let words = cell.words;
                 for (p, q) in [(a, b), (a, c), (b, c)] {
                     search.ensure_table(cell, p, q);
@@ -1722,72 +1760,86 @@ pub(super) fn run(
                         });
                     }
                 }
-                if survivors.is_empty() {
-                    continue;
-                }
-                let cell = &*cell;
+                let cands = &cell.cands;
+                let centre = &cell.centre;
                 for &[i, j, k] in &survivors {
-                    let cands = &cell.cands;
-                    let centre = &cell.centre;
                     let points = [
                         db.landmarks()[cands[i].index].position_in_world,
                         db.landmarks()[cands[j].index].position_in_world,
                         db.landmarks()[cands[k].index].position_in_world,
                     ];
-                    if det_b_reliable {
+                    // The orientation test (the sign first: the plane's distance, with its
+                    // square root and division, only decides whether the sign may be used).
+                    if det_b_reliable
+                        && cands[i]
+                            .direction
+                            .dot(&cands[j].direction.cross(&cands[k].direction))
+                            * det_b
+                            < 0.0
+                    {
                         let normal = (points[1] - points[0]).cross(&(points[2] - points[0]));
                         let nn = normal.norm();
                         if nn > 0.0 && (normal.dot(&(centre - points[0])) / nn).abs() > radius {
-                            let det_l = cands[i]
-                                .direction
-                                .dot(&cands[j].direction.cross(&cands[k].direction));
-                            if det_l * det_b < 0.0 {
-                                continue;
-                            }
+                            continue;
                         }
                     }
-                    // The same landmark triple passes in neighbouring cells: solve it once
-                    // per detection triple.
                     let key = [cands[i].index, cands[j].index, cands[k].index];
-                    let (start, count) = *solved.entry(TripleKey(key)).or_insert_with(|| {
-                        solves += 1;
-                        let start = solved_poses.len();
-                        for pose in p3p(&bearings, &points) {
-                            let inside = in_box(&pose.translation.vector, &reach_min, &reach_max);
-                            let upright =
-                                up_min_z.is_none_or(|(u, min_z)| (pose.rotation * u).z >= min_z);
-                            if inside && upright {
-                                solved_poses.push(pose);
-                            }
-                        }
-                        (start, solved_poses.len() - start)
+                    let slot = *solved.entry(TripleKey(key)).or_insert_with(|| {
+                        to_solve.push(points);
+                        to_solve.len() - 1
                     });
-                    for &pose in &solved_poses[start..start + count] {
-                        if (pose.translation.vector - centre).norm() > radius + position_margin {
-                            continue;
-                        }
-                        // Preemptive verification: enough other core detections must each see,
-                        // under this exact pose, a candidate landmark of the cell.
-                        if options.min_extensions > 0
-                            && !search.verify(&pose, &extensions, [i, j, k], cell)
-                        {
-                            continue;
-                        }
-                        search.hypotheses += 1;
-                        // Only hypotheses that could be the best or a close runner-up are worth
-                        // scoring to the end.
-                        let best = search.kept.first().map_or(0, |h| h.inliers);
-                        let needed = best.saturating_sub(options.ambiguity_margin + 1).max(4);
-                        let (inliers, cost, assignment) =
-                            search.score(&pose, &cell.indices, HYPOTHESIS_THRESHOLD_FACTOR, needed);
-                        if inliers >= options.min_inliers.min(4) {
-                            search.keep(pose, inliers, cost, [a, b, c], &assignment);
-                        }
-                    }
-                    if solves >= options.max_hypotheses {
-                        break 'rounds;
+                    work.push((cell_index, [i, j, k], slot));
+                    // P3P solves (every hypothesis scored comes from one): the budget.
+                    if solves + to_solve.len() >= options.max_hypotheses {
+                        budget_spent = true;
+                        break 'cells;
                     }
                 }
+            }
+            solves += to_solve.len();
+            // Each distinct landmark triple's P3P poses inside the area (with the cells'
+            // reach) and upright enough.
+            let keep_pose = |pose: &Pose| {
+                in_box(&pose.translation.vector, &reach_min, &reach_max)
+                    && up_min_z.is_none_or(|(u, min_z)| (pose.rotation * u).z >= min_z)
+            };
+            solve_triples(
+                prepared.as_ref(),
+                &to_solve,
+                keep_pose,
+                &mut solved_poses,
+                &mut solved_ranges,
+            );
+            // The hypotheses, in the cells' visiting order.
+            for &(cell_index, [i, j, k], slot) in &work {
+                let cell = &cell_data[cell_index];
+                let centre = &cell.centre;
+                let (start, count) = solved_ranges[slot];
+                for &pose in &solved_poses[start..start + count] {
+                    if (pose.translation.vector - centre).norm() > radius + position_margin {
+                        continue;
+                    }
+                    // Preemptive verification: enough other core detections must each see,
+                    // under this exact pose, a candidate landmark of the cell.
+                    if options.min_extensions > 0
+                        && !search.verify(&pose, &extensions, [i, j, k], cell)
+                    {
+                        continue;
+                    }
+                    search.hypotheses += 1;
+                    // Only hypotheses that could be the best or a close runner-up are worth
+                    // scoring to the end.
+                    let best = search.kept.first().map_or(0, |h| h.inliers);
+                    let needed = best.saturating_sub(options.ambiguity_margin + 1).max(4);
+                    let (inliers, cost, assignment) =
+                        search.score(&pose, &cell.indices, HYPOTHESIS_THRESHOLD_FACTOR, needed);
+                    if inliers >= options.min_inliers.min(4) {
+                        search.keep(pose, inliers, cost, [a, b, c], &assignment);
+                    }
+                }
+            }
+            if budget_spent {
+                break 'rounds;
             }
             // Early stop only for a best that explains at least half the usable detections: a
             // wrong pose on a repetitive layout can be confirmed twice while the true one (with

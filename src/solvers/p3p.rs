@@ -233,6 +233,88 @@ pub fn p3p(
     solutions
 }
 
+/// Three bearings prepared for P3P: made unit, with their pairwise cosines and squared
+/// sines. What [`p3p`] computes from the bearings alone, done once when one detection
+/// triple is solved against many landmark triples (the matcher solves hundreds per triple).
+///
+/// # Example
+/// ```
+/// use nalgebra::Vector3;
+/// use vgps::geometry::{bearing_in_rig, Pose, PoseSolutions};
+/// use vgps::solvers::p3p::{p3p_prepared_into, P3pBearings};
+/// let truth = Pose::new(Vector3::new(10.0, -5.0, 2.0), Vector3::new(0.0, 0.0, 0.3));
+/// let points = [
+///     Vector3::new(30.0, 0.0, 5.0),
+///     Vector3::new(-20.0, 4.0, 1.0),
+///     Vector3::new(12.0, 25.0, -3.0),
+/// ];
+/// let bearings = P3pBearings::try_new(&points.map(|p| bearing_in_rig(&truth, &p).unwrap()))
+///     .unwrap();
+/// let mut solutions = PoseSolutions::new();
+/// p3p_prepared_into(&bearings, &points, &mut solutions);
+/// assert!(solutions
+///     .iter()
+///     .any(|s| (s.translation.vector - truth.translation.vector).norm() < 1e-9));
+/// ```
+#[derive(Clone, Copy, Debug)]
+pub struct P3pBearings {
+    /// Unit bearings.
+    ys: [Vector3<f64>; 3],
+    /// Cosines `b12, b13, b23`.
+    b: [f64; 3],
+    /// Squared sines `s12, s13, s23`.
+    s: [f64; 3],
+}
+
+impl P3pBearings {
+    /// Prepares three bearings (any non-zero finite length); `None` when a bearing is zero
+    /// or not finite, or two are (anti)parallel to within [`MIN_BEARING_SINE`]: a
+    /// degenerate sample for every landmark triple.
+    #[inline(always)]
+    pub fn try_new(bearings_in_rig: &[Vector3<f64>; 3]) -> Option<Self> {
+        let [r1, r2, r3] = bearings_in_rig;
+        let (n1, n2, n3) = (r1.norm_squared(), r2.norm_squared(), r3.norm_squared());
+        // All three within FAST_NORM2_RANGE; a NaN or infinity makes the sum fail the test.
+        let fast = min2(min2(n1, n2), n3) > FAST_NORM2_RANGE.0 && n1 + n2 + n3 < FAST_NORM2_RANGE.1;
+        let [y1, y2, y3] = if fast {
+            [
+                r1 * (1.0 / n1.sqrt()),
+                r2 * (1.0 / n2.sqrt()),
+                r3 * (1.0 / n3.sqrt()),
+            ]
+        } else {
+            units_rescaled(bearings_in_rig)?
+        };
+        let (b12, b13, b23) = (y1.dot(&y2), y1.dot(&y3), y2.dot(&y3));
+        // Squared sines of the angles between the bearings, the sᵢⱼ of the cubic.
+        let (s12, s13, s23) = (1.0 - b12 * b12, 1.0 - b13 * b13, 1.0 - b23 * b23);
+        // 1 − b² cannot resolve the tiny angles of the parallel-bearing guard: below
+        // SMALL_SINE2 the guard uses the cross products (exact for small angles).
+        let clearly_apart = s12 > SMALL_SINE2 && s13 > SMALL_SINE2 && s23 > SMALL_SINE2;
+        if !clearly_apart && !bearings_apart(&y1, &y2, &y3) {
+            return None;
+        }
+        Some(Self {
+            ys: [y1, y2, y3],
+            b: [b12, b13, b23],
+            s: [s12, s13, s23],
+        })
+    }
+}
+
+/// [`p3p`] with the bearings prepared once ([`P3pBearings`]), writing every solution into
+/// `solutions` (cleared first) instead of returning a new list: the same solutions, bit for
+/// bit, for many landmark triples seen along the same three bearings.
+#[inline]
+pub fn p3p_prepared_into(
+    bearings: &P3pBearings,
+    points_in_world: &[Vector3<f64>; 3],
+    solutions: &mut PoseSolutions,
+) {
+    solutions.clear();
+    solve_prepared(bearings, points_in_world, solutions);
+}
+
 /// The body of [`p3p`], pushing every solution into `solutions`.
 #[inline(always)]
 fn solve_into(
@@ -240,32 +322,21 @@ fn solve_into(
     points_in_world: &[Vector3<f64>; 3],
     solutions: &mut PoseSolutions,
 ) {
-    // --- Input checks and normalisation -------------------------------------------------
-    let [r1, r2, r3] = bearings_in_rig;
-    let (n1, n2, n3) = (r1.norm_squared(), r2.norm_squared(), r3.norm_squared());
-    // All three within FAST_NORM2_RANGE; a NaN or infinity makes the sum fail the test.
-    let fast = min2(min2(n1, n2), n3) > FAST_NORM2_RANGE.0 && n1 + n2 + n3 < FAST_NORM2_RANGE.1;
-    let [y1, y2, y3] = if fast {
-        [
-            r1 * (1.0 / n1.sqrt()),
-            r2 * (1.0 / n2.sqrt()),
-            r3 * (1.0 / n3.sqrt()),
-        ]
-    } else {
-        match units_rescaled(bearings_in_rig) {
-            Some(ys) => ys,
-            None => return,
-        }
-    };
-    let (b12, b13, b23) = (y1.dot(&y2), y1.dot(&y3), y2.dot(&y3));
-    // Squared sines of the angles between the bearings, the sᵢⱼ of the cubic below.
-    let (s12, s13, s23) = (1.0 - b12 * b12, 1.0 - b13 * b13, 1.0 - b23 * b23);
-    // 1 − b² cannot resolve the tiny angles of the parallel-bearing guard: below
-    // SMALL_SINE2 the guard uses the cross products (exact for small angles).
-    let clearly_apart = s12 > SMALL_SINE2 && s13 > SMALL_SINE2 && s23 > SMALL_SINE2;
-    if !clearly_apart && !bearings_apart(&y1, &y2, &y3) {
-        return;
+    if let Some(bearings) = P3pBearings::try_new(bearings_in_rig) {
+        solve_prepared(&bearings, points_in_world, solutions);
     }
+}
+
+/// The world-side part of [`p3p`], from prepared bearings.
+#[inline(always)]
+fn solve_prepared(
+    bearings: &P3pBearings,
+    points_in_world: &[Vector3<f64>; 3],
+    solutions: &mut PoseSolutions,
+) {
+    let [y1, y2, y3] = bearings.ys;
+    let [b12, b13, b23] = bearings.b;
+    let [s12, s13, s23] = bearings.s;
     let [x1, x2, x3] = points_in_world;
     let d12 = x1 - x2;
     let d13 = x1 - x3;
