@@ -374,7 +374,9 @@ struct Search<'a> {
     /// index and range.
     scratch_dirs: Vec<(Vector3<f64>, usize, f64)>,
     scratch_best: Vec<(usize, f64)>,
-    scratch_offsets: Vec<(Vector3<f64>, f64)>,
+    /// Scratch of [`Search::verify`]: per extension detection, its world direction and
+    /// whether it has been seen.
+    scratch_extensions: Vec<(Vector3<f64>, bool)>,
     /// The rig's up direction (unit, rig frame) and its tolerance (radians), when known.
     up: Option<(Vector3<f64>, f64)>,
     /// The search area widened by the position margin of a P3P pose: a fix must lie in it.
@@ -472,9 +474,17 @@ impl Search<'_> {
         let cos_threshold = threshold.min(std::f64::consts::PI).cos();
         let survey_factor = HYPOTHESIS_THRESHOLD_FACTOR * self.options.inlier_threshold_sigmas;
         let t = pose.translation.vector;
-        // Each candidate's offset from the rig and `cos(threshold) · range`: a detection `d`
-        // sees it when `offset · (R b_d) ≥ cos(threshold) · range`.
-        self.scratch_offsets.clear();
+        // The extensions' directions in the world frame, and whether each has been seen.
+        // Candidates are visited once each (a square root per candidate), so the search
+        // stops at the first candidate that completes the count: a detection `d` sees a
+        // candidate when `offset · (R b_d) ≥ cos(threshold) · range`.
+        self.scratch_extensions.clear();
+        self.scratch_extensions.extend(
+            extensions
+                .iter()
+                .map(|&d| (pose.rotation * self.directions[d], false)),
+        );
+        let mut verified = 0;
         for (m, cand) in cell.cands.iter().enumerate() {
             if exclude.contains(&m) {
                 continue;
@@ -491,20 +501,15 @@ impl Search<'_> {
                 } else {
                     cos_threshold
                 };
-                self.scratch_offsets.push((v, cos_t * r));
-            }
-        }
-        let mut verified = 0;
-        for &d in extensions {
-            let w = pose.rotation * self.directions[d];
-            if self
-                .scratch_offsets
-                .iter()
-                .any(|(v, limit)| v.dot(&w) >= *limit)
-            {
-                verified += 1;
-                if verified >= self.options.min_extensions {
-                    return true;
+                let limit = cos_t * r;
+                for (w, seen) in &mut self.scratch_extensions {
+                    if !*seen && v.dot(w) >= limit {
+                        *seen = true;
+                        verified += 1;
+                        if verified >= self.options.min_extensions {
+                            return true;
+                        }
+                    }
                 }
             }
         }
@@ -1576,7 +1581,7 @@ pub(super) fn run(
         hypotheses: 0,
         scratch_dirs: Vec::new(),
         scratch_best: Vec::new(),
-        scratch_offsets: Vec::new(),
+        scratch_extensions: Vec::new(),
         up,
         area_min: area.min_in_world.add_scalar(-position_margin),
         area_max: area.max_in_world.add_scalar(position_margin),
