@@ -1196,7 +1196,12 @@ fn fast_acos(x: f64) -> f64 {
     ];
     let x = x.clamp(-1.0, 1.0);
     let a = x.abs();
-    let p = A.iter().rev().fold(0.0, |p, &c| p * a + c);
+    // Estrin's scheme: a dependency chain of four multiply-adds instead of Horner's eight
+    // (the set-up evaluates one per candidate pair, and their chains overlap).
+    let (a2, a4) = (a * a, (a * a) * (a * a));
+    let p = (A[0] + A[1] * a)
+        + a2 * (A[2] + A[3] * a)
+        + a4 * ((A[4] + A[5] * a) + a2 * (A[6] + A[7] * a));
     let r = (1.0 - a).sqrt() * p;
     if x >= 0.0 {
         r
@@ -1677,8 +1682,9 @@ pub(super) fn run(
     // first `max_core_detections · CORE_GROWTH^r` of them.
     let order = core_detections(&search.directions, &usable, n_usable);
     let mut survivors: Vec<[usize; 3]> = Vec::new();
-    // Per landmark triple of the current detection triple: the range of `solved_poses` that
-    // holds its P3P poses inside the area (with the cells' reach) and upright enough.
+    // Per landmark triple of the current detection triple: its index in `to_solve` (and in
+    // `solved_ranges`, the range of `solved_poses` that holds its P3P poses inside the area,
+    // with the cells' reach, and upright enough).
     // A detection triple solves about 700 distinct landmark triples over a 30 m prior:
     // sized once, so that it does not grow by rehashing during the first triple.
     let mut solved: HashMap<TripleKey, usize, BuildHasherDefault<TripleHasher>> =
