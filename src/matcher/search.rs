@@ -1579,15 +1579,18 @@ const AZIMUTH_TEST_SLACK_RAD: f64 = 1e-6;
 /// `η = asin((1 − cos θ) + |tan e| sin θ)` (increasing in `θ ≤ π/2`; `π/2` when the
 /// argument reaches 1). So the world azimuths of a P3P pose's landmark directions are
 /// `α + ψ + ε` with `|ε| ≤ η` per bearing, and the horizontal angle under which the pose
-/// sees two landmarks differs from `γ` by at most `η_p + η_q`.
+/// sees two landmarks differs from `γ` by at most `η_p + η_q`. The two bearings share one
+/// tilt, so the difference `ε_q − ε_p` is bounded more tightly by
+/// [`shared_tilt_azimuth_bound`]; the smaller bound is used.
 #[derive(Clone, Copy)]
 struct LevelledTriple {
     /// `cos γ` per pair.
     cos: [f64; 3],
     /// `sin γ` per pair.
     sin: [f64; 3],
-    /// `sin(min(η_p + η_q, π/2))` per pair: the bound on `|sin(θ − γ)|` for the angle `θ`
-    /// under which an upright-enough pose sees the pair.
+    /// `sin(min(η_p + η_q, B_pq, π/2))` per pair (`B_pq` of
+    /// [`shared_tilt_azimuth_bound`]): the bound on `|sin(θ − γ)|` for the angle `θ` under
+    /// which an upright-enough pose sees the pair.
     tolerance: [f64; 3],
 }
 
@@ -1610,6 +1613,7 @@ impl LevelledTriple {
         let e2 = up.cross(&e1);
         let (sin_t, cos_t) = tilt.sin_cos();
         let mut flat = [Vector2::zeros(); 3];
+        let mut tan_e = [0.0; 3];
         let mut eta = [0.0; 3];
         for (p, b) in bearings.iter().enumerate() {
             let h = Vector2::new(b.dot(&e1), b.dot(&e2));
@@ -1618,7 +1622,8 @@ impl LevelledTriple {
                 return None;
             }
             flat[p] = h / n;
-            let reach = (1.0 - cos_t) + (b.dot(up).abs() / n) * sin_t;
+            tan_e[p] = b.dot(up) / n;
+            let reach = (1.0 - cos_t) + tan_e[p].abs() * sin_t;
             eta[p] = if reach < 1.0 {
                 reach.asin()
             } else {
@@ -1626,16 +1631,65 @@ impl LevelledTriple {
             };
         }
         let pair = |f: &dyn Fn(usize, usize) -> f64| TRIPLE_PAIRS.map(|(p, q)| f(p, q));
+        let sin = pair(&|p, q| flat[p].perp(&flat[q]));
         Some(Self {
             cos: pair(&|p, q| flat[p].dot(&flat[q])),
-            sin: pair(&|p, q| flat[p].perp(&flat[q])),
-            tolerance: pair(&|p, q| {
-                (eta[p] + eta[q] + 2.0 * AZIMUTH_TEST_SLACK_RAD)
+            sin,
+            tolerance: std::array::from_fn(|k| {
+                let (p, q) = TRIPLE_PAIRS[k];
+                let shared = shared_tilt_azimuth_bound(
+                    (tan_e[p], &flat[p]),
+                    (tan_e[q], &flat[q]),
+                    sin[k],
+                    (sin_t, cos_t),
+                );
+                (shared.min(eta[p] + eta[q]) + 2.0 * AZIMUTH_TEST_SLACK_RAD)
                     .min(std::f64::consts::FRAC_PI_2)
                     .sin()
             }),
         })
     }
+}
+
+/// A bound on how far one tilt of at most `τ` (`(sin τ, cos τ)`, `0 ≤ τ < π/2`) moves the
+/// difference of the azimuths of two directions, radians; `+∞` when it does not apply.
+/// Each direction is given by the tangent `t = tan e` of its elevation (signed) and its unit
+/// horizontal direction `f = e^{iα}` about the vertical; `sin_gamma = sin(α_q − α_p)`.
+///
+/// **Derivation.** Tilt about a horizontal axis at azimuth `β` by `θ` (`0 ≤ θ ≤ τ`; the other
+/// sense is the axis at `β + π`), and write `a = α − β` (after any heading: it cancels below). The
+/// horizontal projection of the direction, divided by `cos e`, goes from `e^{ia}` to
+/// `cos a + i (sin a cos θ − t sin θ) = e^{ia} − i k`, `k = sin a (1 − cos θ) + t sin θ`,
+/// so its azimuth moves by `ε = arg(1 + z)`, `z = −i k e^{−ia}`, `|z| = |k| ≤ K =
+/// (1 − cos τ) + |t| sin τ`. For `K < 1`, `|arg(1 + z) − Im z| ≤ |log(1 + z) − z| ≤
+/// Σ_{n≥2} |z|ⁿ/n ≤ K² / (2 (1 − K)) =: r` (the principal `arg` is the continuous one: `1 + z`
+/// stays in the right half-plane), and `Im z = −k cos a = −t sin θ cos a − ½ (1 − cos θ)
+/// sin 2a`. For two directions under the same `(β, θ)`:
+/// `ε_p − ε_q = −sin θ Re[(t_p e^{iα_p} − t_q e^{iα_q}) e^{−iβ}] − ½ (1 − cos θ)
+/// Im[(e^{2iα_p} − e^{2iα_q}) e^{−2iβ}] + (R_p − R_q)`, `|R| ≤ r`, hence
+/// `|ε_p − ε_q| ≤ sin τ |t_p f_p − t_q f_q| + (1 − cos τ) |sin(α_q − α_p)| + r_p + r_q`
+/// (`|e^{2iα_p} − e^{2iα_q}| = 2 |sin(α_q − α_p)|`). To first order this is
+/// `τ |tan e_p e^{iα_p} − tan e_q e^{iα_q}|`: small for two landmarks at similar elevations in
+/// similar directions, where the per-bearing bound `η_p + η_q` is `≈ τ (|t_p| + |t_q|)`.
+/// Tested in `shared_tilt_azimuth_bound_holds_for_every_tilt_within_the_tolerance`.
+fn shared_tilt_azimuth_bound(
+    (t_p, f_p): (f64, &Vector2<f64>),
+    (t_q, f_q): (f64, &Vector2<f64>),
+    sin_gamma: f64,
+    (sin_tau, cos_tau): (f64, f64),
+) -> f64 {
+    let remainder = |t: f64| {
+        let big_k = (1.0 - cos_tau) + t.abs() * sin_tau;
+        if big_k < 1.0 {
+            big_k * big_k / (2.0 * (1.0 - big_k))
+        } else {
+            f64::INFINITY
+        }
+    };
+    sin_tau * (f_p * t_p - f_q * t_q).norm()
+        + (1.0 - cos_tau) * sin_gamma.abs()
+        + remainder(t_p)
+        + remainder(t_q)
 }
 
 /// Whether a pose that sees three landmarks along the levelled bearings of `triple`, tilted
@@ -2330,6 +2384,7 @@ fn conclude(search: &mut Search, cells: usize) -> MatchResult {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::solvers::p3p::p3p;
     use rand::RngExt;
 
     #[test]
@@ -2436,6 +2491,109 @@ mod tests {
         let axis = nalgebra::Unit::new_normalize(Vector3::new(a.cos(), a.sin(), 0.0));
         let tilt = nalgebra::Rotation3::from_axis_angle(&axis, theta);
         Pose::from_parts(position.into(), tilt * heading * level)
+    }
+
+    #[test]
+    fn shared_tilt_azimuth_bound_holds_for_every_tilt_within_the_tolerance() {
+        let mut r = crate::synthetic::rng(78);
+        let (mut tested, mut tighter, mut near_horizon) = (0, 0, 0);
+        let mut worst_ratio = 0f64;
+        let trials = 40_000;
+        for trial in 0..trials {
+            let up = crate::synthetic::random_unit_vector(&mut r);
+            // Tolerances up to 80°, half of them at the matcher's 6°.
+            let tol = if trial % 2 == 0 {
+                4f64.to_radians() + UP_CHECK_MARGIN_RAD
+            } else {
+                r.random_range(0.0..1.4)
+            };
+            let (sin_t, cos_t) = tol.sin_cos();
+            // Tilted by the whole tolerance one time in two.
+            let theta = if trial % 4 < 2 {
+                tol
+            } else {
+                tol * r.random_range(0.0..1.0)
+            };
+            let pose = tilted_pose(&mut r, &up, theta, Vector3::zeros());
+            // Three bearings: near the horizon (elevations within ±20°) two times in three, as
+            // street lamps are, else anywhere.
+            let level =
+                nalgebra::Rotation3::rotation_between(&Vector3::z(), &up).unwrap_or_else(|| {
+                    nalgebra::Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
+                });
+            let low = trial % 3 != 2;
+            let bearing = |r: &mut crate::synthetic::TestRng| {
+                if low {
+                    let e: f64 = r.random_range(-20f64.to_radians()..20f64.to_radians());
+                    let a: f64 = r.random_range(0.0..std::f64::consts::TAU);
+                    level * Vector3::new(e.cos() * a.cos(), e.cos() * a.sin(), e.sin())
+                } else {
+                    crate::synthetic::random_unit_vector(r)
+                }
+            };
+            let bearings = [bearing(&mut r), bearing(&mut r), bearing(&mut r)];
+            let Some(levelled) = LevelledTriple::new(&bearings, &up, tol) else {
+                continue;
+            };
+            // The same levelling as `LevelledTriple::new`.
+            let seed = if up.x.abs() < 0.9 {
+                Vector3::x()
+            } else {
+                Vector3::y()
+            };
+            let e1 = try_unit(&(seed - up * up.dot(&seed))).unwrap();
+            let e2 = up.cross(&e1);
+            let flat = |b: &Vector3<f64>| {
+                let h = Vector2::new(b.dot(&e1), b.dot(&e2));
+                (b.dot(&up) / h.norm(), h / h.norm())
+            };
+            for (k, (p, q)) in TRIPLE_PAIRS.into_iter().enumerate() {
+                let ((t_p, f_p), (t_q, f_q)) = (flat(&bearings[p]), flat(&bearings[q]));
+                let gamma = f_p.perp(&f_q).atan2(f_p.dot(&f_q));
+                let bound = shared_tilt_azimuth_bound(
+                    (t_p, &f_p),
+                    (t_q, &f_q),
+                    levelled.sin[k],
+                    (sin_t, cos_t),
+                );
+                // The azimuth difference in the world under the tilted pose.
+                let (d_p, d_q) = (
+                    (pose.rotation * bearings[p]).xy(),
+                    (pose.rotation * bearings[q]).xy(),
+                );
+                let seen = d_p.perp(&d_q).atan2(d_p.dot(&d_q));
+                let mut moved = seen - gamma;
+                if moved > std::f64::consts::PI {
+                    moved -= std::f64::consts::TAU;
+                } else if moved < -std::f64::consts::PI {
+                    moved += std::f64::consts::TAU;
+                }
+                assert!(
+                    moved.abs() <= bound + 1e-9,
+                    "trial {trial}: moved {moved} beyond {bound} (tilt {theta} of {tol})"
+                );
+                tested += 1;
+                // The per-bearing bound, as in `LevelledTriple::new`.
+                let eta = |t: f64| ((1.0 - cos_t) + t.abs() * sin_t).min(1.0).asin();
+                if low && trial % 2 == 0 {
+                    near_horizon += 1;
+                    if bound < 0.75 * (eta(t_p) + eta(t_q)) {
+                        tighter += 1;
+                    }
+                    if theta == tol {
+                        worst_ratio = worst_ratio.max(moved.abs() / bound);
+                    }
+                }
+            }
+        }
+        assert!(tested > trials * 2, "{tested}");
+        // Tighter by a quarter than the per-bearing bound for most pairs near the horizon
+        // at the matcher's tolerance, and nearly reached.
+        assert!(
+            tighter > near_horizon / 2,
+            "{tighter} of {near_horizon} tighter by a quarter"
+        );
+        assert!(worst_ratio > 0.9, "{worst_ratio}");
     }
 
     #[test]
