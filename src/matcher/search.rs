@@ -66,10 +66,8 @@ struct Candidate {
     /// `1 / (range − radius)`, the reciprocal of the least range over the cell's ball
     /// (`+∞` when the landmark is within the ball), 1/metres.
     inv_near: f64,
-    /// The horizontal offset of the landmark from the cell centre (its x and y), metres:
-    /// for the azimuth test ([`azimuths_can_meet`]).
-    offset: Vector2<f64>,
-    /// The length of `offset`, metres.
+    /// The horizontal distance of the landmark from the cell centre, metres: for the azimuth
+    /// test ([`azimuths_can_meet`]).
     horizontal: f64,
 }
 
@@ -85,12 +83,10 @@ impl Candidate {
         survey: f64,
     ) -> Self {
         let inside = range <= radius;
-        let offset = v.xy();
         Self {
             index,
             direction,
-            offset,
-            horizontal: offset.norm(),
+            horizontal: v.xy().norm(),
             wander: if inside {
                 std::f64::consts::PI
             } else {
@@ -1695,8 +1691,8 @@ fn shared_tilt_azimuth_bound(
 /// Whether a pose that sees three landmarks along the levelled bearings of `triple`, tilted
 /// within its bound, can stand within horizontal distance `reach` of a cell centre; the
 /// landmarks' horizontal offsets from the centre are `offsets` and their horizontal
-/// distances from any such point at most `range_max` (in the matcher: the offset's length
-/// plus `reach`, both kept per candidate). A necessary condition: `false` only if no such
+/// distances from any such point at most `range_max` (in the matcher: the offset's length,
+/// kept per candidate, plus `reach`). A necessary condition: `false` only if no such
 /// pose exists.
 ///
 /// For a point `t` (horizontal, relative to the centre) and a pair `(p, q)` with offsets
@@ -2078,7 +2074,7 @@ pub(super) fn run(
                             if let Some(levelled) = &levelled
                                 && !azimuths_can_meet(
                                     levelled,
-                                    &[cands[i].offset, cands[j].offset, cands[k].offset],
+                                    &points.map(|l| (l - centre).xy()),
                                     &[
                                         cands[i].horizontal + cell_reach,
                                         cands[j].horizontal + cell_reach,
