@@ -1208,12 +1208,7 @@ fn fast_acos(x: f64) -> f64 {
     ];
     let x = x.clamp(-1.0, 1.0);
     let a = x.abs();
-    // Estrin's scheme: a dependency chain of four multiply-adds instead of Horner's eight
-    // (the set-up evaluates one per candidate pair, and their chains overlap).
-    let (a2, a4) = (a * a, (a * a) * (a * a));
-    let p = (A[0] + A[1] * a)
-        + a2 * (A[2] + A[3] * a)
-        + a4 * ((A[4] + A[5] * a) + a2 * (A[6] + A[7] * a));
+    let p = A.iter().rev().fold(0.0, |p, &c| p * a + c);
     let r = (1.0 - a).sqrt() * p;
     if x >= 0.0 {
         r
