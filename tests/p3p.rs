@@ -355,3 +355,77 @@ fn prepared_bearings_give_the_same_solutions_bit_for_bit() {
         assert!(p3p(&bad, &p.points_in_world).is_empty());
     }
 }
+
+/// With a known vertical (`P3pBearings::with_max_tilt`), P3P returns exactly `p3p`'s
+/// solutions whose up is within the tilt, bit for bit: the early rejection by the
+/// triangle's frame axes never drops an upright solution, including solutions right at
+/// the limit, tilts up to 80° and noisy bearings.
+#[test]
+fn a_known_vertical_keeps_exactly_the_upright_solutions() {
+    use vgps::geometry::PoseSolutions;
+    use vgps::solvers::p3p::{P3pBearings, p3p_prepared_into};
+    let mut r = rng(17);
+    let mut out = PoseSolutions::new();
+    let (mut kept, mut dropped) = (0usize, 0usize);
+    let bits = |s: &Pose| -> Vec<u64> {
+        let mut v: Vec<u64> = s.rotation.matrix().iter().map(|x| x.to_bits()).collect();
+        v.extend(s.translation.vector.iter().map(|x| x.to_bits()));
+        v
+    };
+    for i in 0..20_000 {
+        let p = P3pProblem::random_omni(&mut r, SCENE);
+        let p = if i % 2 == 0 {
+            p
+        } else {
+            p.with_noise(&mut r, 0.2f64.to_radians())
+        };
+        let solutions = p3p(&p.bearings_in_rig, &p.points_in_world);
+        if solutions.is_empty() {
+            continue;
+        }
+        // The up of one solution (so that the limit is met exactly one time in four), else
+        // a random direction; limits from 0 to 80°.
+        let pick = &solutions[i % solutions.len()];
+        let up = if i % 2 == 0 {
+            pick.rotation.inverse() * Vector3::z()
+        } else {
+            random_unit_vector(&mut r)
+        };
+        let tilt = angle_between(&(pick.rotation * up), &Vector3::z());
+        let max_tilt = match i % 4 {
+            0 => tilt,
+            1 => tilt * 1.5 + 1e-3,
+            _ => 1.4 * (i % 97) as f64 / 97.0,
+        };
+        let Some(prepared) =
+            P3pBearings::try_new(&p.bearings_in_rig).and_then(|b| b.with_max_tilt(&up, max_tilt))
+        else {
+            panic!("problem {i}: not prepared");
+        };
+        p3p_prepared_into(&prepared, &p.points_in_world, &mut out);
+        let expected: Vec<Vec<u64>> = solutions
+            .iter()
+            .filter(|s| max_tilt >= std::f64::consts::PI || (s.rotation * up).z >= max_tilt.cos())
+            .map(bits)
+            .collect();
+        let got: Vec<Vec<u64>> = out.iter().map(bits).collect();
+        assert_eq!(got, expected, "problem {i}, max tilt {max_tilt}");
+        kept += got.len();
+        dropped += solutions.len() - got.len();
+    }
+    assert!(
+        kept > 5_000 && dropped > 5_000,
+        "kept {kept}, dropped {dropped}"
+    );
+    // Invalid verticals; no constraint from π on.
+    let p = P3pProblem::random_omni(&mut r, SCENE);
+    let b = P3pBearings::try_new(&p.bearings_in_rig).expect("random bearings");
+    let z = Vector3::z();
+    assert!(b.with_max_tilt(&(z * 2.0), 0.1).is_none());
+    assert!(b.with_max_tilt(&Vector3::zeros(), 0.1).is_none());
+    assert!(b.with_max_tilt(&z, -0.1).is_none());
+    assert!(b.with_max_tilt(&z, f64::NAN).is_none());
+    let all = b.with_max_tilt(&z, std::f64::consts::PI).expect("valid");
+    p3p_prepared_into(&all, &p.points_in_world, &mut out);
+    assert_eq!(out.len(), p3p(&p.bearings_in_rig, &p.points_in_world).len());
+}

@@ -1926,19 +1926,6 @@ pub(super) fn run(
     let cell_reach = radius + position_margin;
     let reach_min = area.min_in_world.add_scalar(-(radius + position_margin));
     let reach_max = area.max_in_world.add_scalar(radius + position_margin);
-    // A pose is upright enough when its up is within `tol + UP_CHECK_MARGIN_RAD` of the
-    // world's: `z ≥ cos(tol + margin)` (no check beyond π).
-    let up_min_z = up.map(|(u, tol)| {
-        let limit = tol + UP_CHECK_MARGIN_RAD;
-        (
-            u,
-            if limit >= std::f64::consts::PI {
-                f64::NEG_INFINITY
-            } else {
-                limit.cos()
-            },
-        )
-    });
     // P3P solves (every hypothesis scored comes from one): the budget of the frame.
     let mut solves = 0usize;
     let mut previous = 0;
@@ -2001,7 +1988,12 @@ pub(super) fn run(
                 .filter(|&l| l != a && l != b && l != c)
                 .collect();
             // `None` for (anti)parallel detections: no landmark triple has a pose for them.
-            let prepared = P3pBearings::try_new(&bearings);
+            // With a known vertical, P3P keeps only the poses whose up is within
+            // `tol + UP_CHECK_MARGIN_RAD` of the world's (no check from π on).
+            let prepared = P3pBearings::try_new(&bearings).and_then(|prepared| match up {
+                Some((u, tol)) => prepared.with_max_tilt(&u, tol + UP_CHECK_MARGIN_RAD),
+                None => Some(prepared),
+            });
             // The landmark triples of every cell in visiting order, and the distinct ones
             // among them to solve (each once per detection triple: the same landmark triple
             // passes in neighbouring cells).
@@ -2099,12 +2091,9 @@ pub(super) fn run(
                 }
             }
             solves += to_solve.len();
-            // Each distinct landmark triple's P3P poses inside the area (with the cells'
-            // reach) and upright enough.
-            let keep_pose = |pose: &Pose| {
-                in_box(&pose.translation.vector, &reach_min, &reach_max)
-                    && up_min_z.is_none_or(|(u, min_z)| (pose.rotation * u).z >= min_z)
-            };
+            // Each distinct landmark triple's P3P poses (upright enough) inside the area
+            // with the cells' reach.
+            let keep_pose = |pose: &Pose| in_box(&pose.translation.vector, &reach_min, &reach_max);
             solve_triples(
                 prepared.as_ref(),
                 &to_solve,

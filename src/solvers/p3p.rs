@@ -264,9 +264,51 @@ pub struct P3pBearings {
     b: [f64; 3],
     /// Squared sines `s12, s13, s23`.
     s: [f64; 3],
+    /// The known vertical, when solutions must be upright ([`P3pBearings::with_max_tilt`]).
+    up: Option<UpLimit>,
+}
+
+/// Added to the frame-axis test of [`UpLimit`] for rounding: the rotation maps each rig
+/// frame axis onto its world axis to about 1e-15, and the computed `cos` test of the
+/// final pose may pass at an angle above the limit by about `√(1e-16)`.
+const UP_AXIS_SLACK: f64 = 1e-7;
+
+/// A known vertical for [`P3pBearings::with_max_tilt`].
+#[derive(Clone, Copy, Debug)]
+struct UpLimit {
+    /// The rig's up direction, unit, in the rig frame.
+    up_in_rig: Vector3<f64>,
+    /// `cos` of the largest tilt: a pose is upright enough when `(R u)_z ≥ min_z`.
+    min_z: f64,
+    /// `2 sin(max_tilt / 2) + UP_AXIS_SLACK`: for every rig vector `w` of unit length,
+    /// `|u·w − (R w)_z| ≤ |u − Rᵀz| = 2 sin(θ/2)`, `θ` the pose's tilt.
+    axis_tol: f64,
 }
 
 impl P3pBearings {
+    /// Keeps only the solutions whose up is within `max_tilt_rad` of the world's `+z`:
+    /// `(R·up_in_rig)_z ≥ cos(max_tilt_rad)` for `R = world_from_rig` (a level vehicle, an
+    /// IMU). `up_in_rig` must be a unit vector (to 1e-12 in its squared norm) and
+    /// `max_tilt_rad` in `[0, ∞)` (no constraint from `π` on); `None` otherwise. The kept
+    /// solutions are `p3p`'s bit for bit, and the others are dropped before the pose is
+    /// assembled whenever an axis of the triangle's frame already shows the tilt (the
+    /// frames map onto each other, so `|u·wₖ − uₖ_z| ≤ 2 sin(θ/2)` for each rig axis `wₖ`
+    /// and its world axis `uₖ`), which saves most of the work of a tilted candidate.
+    ///
+    /// # Units
+    /// Radians.
+    pub fn with_max_tilt(mut self, up_in_rig: &Vector3<f64>, max_tilt_rad: f64) -> Option<Self> {
+        if !((up_in_rig.norm_squared() - 1.0).abs() <= 1e-12 && max_tilt_rad >= 0.0) {
+            return None;
+        }
+        self.up = (max_tilt_rad < std::f64::consts::PI).then(|| UpLimit {
+            up_in_rig: *up_in_rig,
+            min_z: max_tilt_rad.cos(),
+            axis_tol: 2.0 * (0.5 * max_tilt_rad).sin() + UP_AXIS_SLACK,
+        });
+        Some(self)
+    }
+
     /// Prepares three bearings (any non-zero finite length); `None` when a bearing is zero
     /// or not finite, or two are (anti)parallel to within [`MIN_BEARING_SINE`]: a
     /// degenerate sample for every landmark triple.
@@ -298,6 +340,7 @@ impl P3pBearings {
             ys: [y1, y2, y3],
             b: [b12, b13, b23],
             s: [s12, s13, s23],
+            up: None,
         })
     }
 }
@@ -464,6 +507,7 @@ fn solve_prepared(
         },
         a_sum: a12 + a13 + a23,
         scale: a_max.sqrt(),
+        up: bearings.up,
     };
 
     let n_lines = if double_line { 1 } else { 2 };
@@ -545,6 +589,8 @@ struct Frame {
     a_sum: f64,
     /// Length of the longest side (metres): the normalisation.
     scale: f64,
+    /// The known vertical, when solutions must be upright.
+    up: Option<UpLimit>,
 }
 
 impl Frame {
@@ -589,10 +635,21 @@ impl Frame {
         if !(n1 > 0.0 && n3 > 0.0) {
             return;
         }
-        let w1 = v1 * (1.0 / n1.sqrt());
-        let w3 = v3 * (1.0 / n3.sqrt());
-        let w2 = w3.cross(&w1);
         let [u1, u2, u3] = &self.u;
+        // With a known vertical: each frame axis is tested as soon as it exists.
+        let tilted = |w: &Vector3<f64>, world_axis: &Vector3<f64>| {
+            self.up
+                .is_some_and(|up| (up.up_in_rig.dot(w) - world_axis.z).abs() > up.axis_tol)
+        };
+        let w1 = v1 * (1.0 / n1.sqrt());
+        if tilted(&w1, u1) {
+            return;
+        }
+        let w3 = v3 * (1.0 / n3.sqrt());
+        if tilted(&w3, u3) {
+            return;
+        }
+        let w2 = w3.cross(&w1);
         // world_from_rig = [u1 u2 u3] [w1 w2 w3]ᵀ.
         let rot = Matrix3::new(
             u1.x * w1.x + u2.x * w2.x + u3.x * w3.x,
@@ -612,10 +669,17 @@ impl Frame {
         if !total.is_finite() {
             return;
         }
-        let _ = solutions.try_push(Pose::from_parts(
+        let pose = Pose::from_parts(
             Translation3::from(origin),
             Rotation3::from_matrix_unchecked(rot),
-        ));
+        );
+        let upright = self
+            .up
+            .is_none_or(|up| (pose.rotation * up.up_in_rig).z >= up.min_z);
+        if !upright {
+            return;
+        }
+        let _ = solutions.try_push(pose);
     }
 }
 
