@@ -273,6 +273,9 @@ pub struct P3pBearings {
 /// final pose may pass at an angle above the limit by about `√(1e-16)`.
 const UP_AXIS_SLACK: f64 = 1e-7;
 
+/// Largest `||u|² − 1|` of the up direction given to [`P3pBearings::with_max_tilt`].
+pub const UNIT_UP_TOLERANCE: f64 = 1e-12;
+
 /// A known vertical for [`P3pBearings::with_max_tilt`].
 #[derive(Clone, Copy, Debug)]
 struct UpLimit {
@@ -286,29 +289,6 @@ struct UpLimit {
 }
 
 impl P3pBearings {
-    /// Keeps only the solutions whose up is within `max_tilt_rad` of the world's `+z`:
-    /// `(R·up_in_rig)_z ≥ cos(max_tilt_rad)` for `R = world_from_rig` (a level vehicle, an
-    /// IMU). `up_in_rig` must be a unit vector (to 1e-12 in its squared norm) and
-    /// `max_tilt_rad` in `[0, ∞)` (no constraint from `π` on); `None` otherwise. The kept
-    /// solutions are `p3p`'s bit for bit, and the others are dropped before the pose is
-    /// assembled whenever an axis of the triangle's frame already shows the tilt (the
-    /// frames map onto each other, so `|u·wₖ − uₖ_z| ≤ 2 sin(θ/2)` for each rig axis `wₖ`
-    /// and its world axis `uₖ`), which saves most of the work of a tilted candidate.
-    ///
-    /// # Units
-    /// Radians.
-    pub fn with_max_tilt(mut self, up_in_rig: &Vector3<f64>, max_tilt_rad: f64) -> Option<Self> {
-        if !((up_in_rig.norm_squared() - 1.0).abs() <= 1e-12 && max_tilt_rad >= 0.0) {
-            return None;
-        }
-        self.up = (max_tilt_rad < std::f64::consts::PI).then(|| UpLimit {
-            up_in_rig: *up_in_rig,
-            min_z: max_tilt_rad.cos(),
-            axis_tol: 2.0 * (0.5 * max_tilt_rad).sin() + UP_AXIS_SLACK,
-        });
-        Some(self)
-    }
-
     /// Prepares three bearings (any non-zero finite length); `None` when a bearing is zero
     /// or not finite, or two are (anti)parallel to within [`MIN_BEARING_SINE`]: a
     /// degenerate sample for every landmark triple.
@@ -342,6 +322,29 @@ impl P3pBearings {
             s: [s12, s13, s23],
             up: None,
         })
+    }
+
+    /// Keeps only the solutions whose up is within `max_tilt_rad` of the world's `+z`:
+    /// `(R·up_in_rig)_z ≥ cos(max_tilt_rad)` for `R = world_from_rig` (a level vehicle, an
+    /// IMU). `up_in_rig` must be a unit vector (to [`UNIT_UP_TOLERANCE`] in its squared
+    /// norm) and `max_tilt_rad` in `[0, ∞)` (no constraint from `π` on); `None` otherwise. The kept
+    /// solutions are `p3p`'s bit for bit, and the others are dropped before the pose is
+    /// assembled whenever an axis of the triangle's frame already shows the tilt (the
+    /// frames map onto each other, so `|u·wₖ − uₖ_z| ≤ 2 sin(θ/2)` for each rig axis `wₖ`
+    /// and its world axis `uₖ`), which saves most of the work of a tilted candidate.
+    ///
+    /// # Units
+    /// Radians.
+    pub fn with_max_tilt(mut self, up_in_rig: &Vector3<f64>, max_tilt_rad: f64) -> Option<Self> {
+        if !((up_in_rig.norm_squared() - 1.0).abs() <= UNIT_UP_TOLERANCE && max_tilt_rad >= 0.0) {
+            return None;
+        }
+        self.up = (max_tilt_rad < std::f64::consts::PI).then(|| UpLimit {
+            up_in_rig: *up_in_rig,
+            min_z: max_tilt_rad.cos(),
+            axis_tol: 2.0 * (0.5 * max_tilt_rad).sin() + UP_AXIS_SLACK,
+        });
+        Some(self)
     }
 }
 
