@@ -42,6 +42,13 @@ fn rotation_quality(pose: &Pose) -> (f64, f64) {
     (e, r.determinant())
 }
 
+/// The bits of a pose's rotation and translation, to compare two solutions exactly.
+fn pose_bits(pose: &Pose) -> Vec<u64> {
+    let mut v: Vec<u64> = pose.rotation.matrix().iter().map(|x| x.to_bits()).collect();
+    v.extend(pose.translation.vector.iter().map(|x| x.to_bits()));
+    v
+}
+
 fn all_finite(pose: &Pose) -> bool {
     pose.to_homogeneous().iter().all(|e| e.is_finite())
 }
@@ -332,12 +339,7 @@ fn prepared_bearings_give_the_same_solutions_bit_for_bit() {
             let direct = p3p(&bearings, &points);
             assert_eq!(out.len(), direct.len());
             for (a, b) in out.iter().zip(&direct) {
-                let bits = |s: &Pose| {
-                    let mut v: Vec<u64> = s.rotation.matrix().iter().map(|x| x.to_bits()).collect();
-                    v.extend(s.translation.vector.iter().map(|x| x.to_bits()));
-                    v
-                };
-                assert_eq!(bits(a), bits(b));
+                assert_eq!(pose_bits(a), pose_bits(b));
             }
             compared += direct.len();
         }
@@ -367,11 +369,6 @@ fn a_known_vertical_keeps_exactly_the_upright_solutions() {
     let mut r = rng(17);
     let mut out = PoseSolutions::new();
     let (mut kept, mut dropped) = (0usize, 0usize);
-    let bits = |s: &Pose| -> Vec<u64> {
-        let mut v: Vec<u64> = s.rotation.matrix().iter().map(|x| x.to_bits()).collect();
-        v.extend(s.translation.vector.iter().map(|x| x.to_bits()));
-        v
-    };
     for i in 0..20_000 {
         let p = P3pProblem::random_omni(&mut r, SCENE);
         let p = if i % 2 == 0 {
@@ -406,9 +403,9 @@ fn a_known_vertical_keeps_exactly_the_upright_solutions() {
         let expected: Vec<Vec<u64>> = solutions
             .iter()
             .filter(|s| max_tilt >= std::f64::consts::PI || (s.rotation * up).z >= max_tilt.cos())
-            .map(bits)
+            .map(pose_bits)
             .collect();
-        let got: Vec<Vec<u64>> = out.iter().map(bits).collect();
+        let got: Vec<Vec<u64>> = out.iter().map(pose_bits).collect();
         assert_eq!(got, expected, "problem {i}, max tilt {max_tilt}");
         kept += got.len();
         dropped += solutions.len() - got.len();
