@@ -1924,6 +1924,9 @@ pub(super) fn run(
     let mut solved_ranges: Vec<(usize, usize)> = Vec::new();
     // How far from its cell's centre a pose of the cell may be.
     let cell_reach = radius + position_margin;
+    // With a known vertical: the rig's up and the largest tilt of a pose worth keeping, the
+    // tolerance plus `UP_CHECK_MARGIN_RAD` (P3P's upright check, and the azimuth test).
+    let up_limit = up.map(|(u, tol)| (u, tol + UP_CHECK_MARGIN_RAD));
     let reach_min = area.min_in_world.add_scalar(-(radius + position_margin));
     let reach_max = area.max_in_world.add_scalar(radius + position_margin);
     // P3P solves (every hypothesis scored comes from one): the budget of the frame.
@@ -1976,8 +1979,8 @@ pub(super) fn run(
             ];
             // With a known vertical: the levelled azimuths, for the test of a landmark triple
             // before its P3P solve (`azimuths_can_meet`).
-            let levelled = up
-                .and_then(|(u, tol)| LevelledTriple::new(&bearings, &u, tol + UP_CHECK_MARGIN_RAD));
+            let levelled =
+                up_limit.and_then(|(u, limit)| LevelledTriple::new(&bearings, &u, limit));
             let det_b = bearings[0].dot(&bearings[1].cross(&bearings[2]));
             // The orientation test is used only when the sign of the detections' determinant is
             // beyond the noise (each bearing moves by at most `noise`).
@@ -1988,10 +1991,10 @@ pub(super) fn run(
                 .filter(|&l| l != a && l != b && l != c)
                 .collect();
             // `None` for (anti)parallel detections: no landmark triple has a pose for them.
-            // With a known vertical, P3P keeps only the poses whose up is within
-            // `tol + UP_CHECK_MARGIN_RAD` of the world's (no check from π on).
-            let prepared = P3pBearings::try_new(&bearings).and_then(|prepared| match up {
-                Some((u, tol)) => prepared.with_max_tilt(&u, tol + UP_CHECK_MARGIN_RAD),
+            // With a known vertical, P3P keeps only the poses whose up is within the limit
+            // of the world's (no check from π on).
+            let prepared = P3pBearings::try_new(&bearings).and_then(|prepared| match up_limit {
+                Some((u, limit)) => prepared.with_max_tilt(&u, limit),
                 None => Some(prepared),
             });
             // The landmark triples of every cell in visiting order, and the distinct ones
