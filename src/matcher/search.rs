@@ -16,6 +16,7 @@ use crate::solvers::refine_pose::{
 };
 use nalgebra::{Matrix2, Matrix6, Vector2, Vector3};
 use rand::{RngExt, SeedableRng};
+use std::cell::RefCell;
 use std::collections::HashMap;
 use std::collections::hash_map::Entry;
 use std::hash::{BuildHasherDefault, Hasher};
@@ -177,7 +178,14 @@ struct CellData {
     cands: Vec<Candidate>,
     /// What the pair tables test of each candidate pair `(i, j)`, row-major `m × m` (the
     /// diagonal unused): one record per pair, so a table row reads one contiguous run.
+    /// Computed when a pair table first needs the pair ([`CellData::ensure_pairs`]).
     pairs: Vec<PairValues>,
+    /// Which entries of `pairs` are computed: `m × words` bits, row `i` the `j`.
+    pairs_done: Vec<u64>,
+    /// Per candidate: its position in the frame's shared landmarks ([`PairContext`]) and the
+    /// terms of [`det_range`] it brings to a pair.
+    slots_shared: Vec<usize>,
+    sides: Vec<DetSide>,
     /// Database indices of the candidates.
     indices: Vec<usize>,
     /// 64-bit words per candidate bitset.
@@ -253,8 +261,82 @@ fn same_bits(a: &Pose, b: &Pose) -> bool {
         .all(|(x, y)| x.to_bits() == y.to_bits())
 }
 
+/// At most this many [`CellData::pairs`] buffers are kept per thread for the next frame
+/// (a prior frame has about 25 cells; a cold start's thousands are not kept).
+const MAX_POOLED_PAIR_BUFFERS: usize = 64;
+
+thread_local! {
+    /// Buffers of pair values freed by earlier frames of this thread. Filling a fresh
+    /// `m × m` buffer cost about 0.15 ms of a 1.3 ms prior frame (25 cells of 65 kB, with
+    /// page faults); an entry is only read once computed ([`CellData::ensure_pairs`] keeps
+    /// `pairs_done`), so a reused buffer needs no filling.
+    static PAIR_BUFFERS: RefCell<Vec<Vec<PairValues>>> = const { RefCell::new(Vec::new()) };
+}
+
+/// A buffer of at least `len` pair values, from the pool when it has one (its stale values
+/// are never read: see [`PAIR_BUFFERS`]).
+fn take_pair_buffer(len: usize) -> Vec<PairValues> {
+    let mut buffer = PAIR_BUFFERS
+        .with_borrow_mut(|pool| pool.pop())
+        .unwrap_or_default();
+    if buffer.len() < len {
+        buffer.resize(len, PairValues::DIAGONAL);
+    }
+    buffer
+}
+
+impl Drop for CellData {
+    fn drop(&mut self) {
+        let buffer = std::mem::take(&mut self.pairs);
+        PAIR_BUFFERS.with_borrow_mut(|pool| {
+            if pool.len() < MAX_POOLED_PAIR_BUFFERS {
+                pool.push(buffer);
+            }
+        });
+    }
+}
+
 impl CellData {
-    /// The whole (built) table of the ordered detection pair `key`.
+    /// Computes the pair values the table of detections `(a, b)` reads, those of the
+    /// candidates `i` detection `a` may be and `j` detection `b` may be, that are not computed
+    /// yet. Each pair is computed with its candidates in database order and written at
+    /// `(i, j)` and, mirrored, at `(j, i)`: the angle and its bound are symmetric, the side
+    /// of the pair changes sign. A frame's first triples (the cheapest, see `run`) read few
+    /// rows and columns: a roof corner high up may be a tenth of a cell's candidates.
+    fn ensure_pairs(&mut self, db: &LandmarkDb, context: &PairContext, a: usize, b: usize) {
+        let Self {
+            cands,
+            sides,
+            slots_shared,
+            words,
+            allowed,
+            pairs,
+            pairs_done,
+            ..
+        } = self;
+        let (m, words) = (cands.len(), *words);
+        let allowed_b = &allowed[b * words..(b + 1) * words];
+        for_each_bit(&allowed[a * words..(a + 1) * words], |i| {
+            for (w, &word_b) in allowed_b.iter().enumerate() {
+                let mut missing = word_b & !pairs_done[i * words + w];
+                // The diagonal is never tested (`i ≠ j`).
+                if w == i / 64 {
+                    missing &= !(1u64 << (i % 64));
+                }
+                while missing != 0 {
+                    let j = w * 64 + missing.trailing_zeros() as usize;
+                    missing &= missing - 1;
+                    let (lo, hi) = (i.min(j), i.max(j));
+                    let values = context.values(db, cands, sides, slots_shared, lo, hi);
+                    pairs[lo * m + hi] = values;
+                    pairs[hi * m + lo] = values.mirrored();
+                    bit_set(&mut pairs_done[i * words..(i + 1) * words], j);
+                    bit_set(&mut pairs_done[j * words..(j + 1) * words], i);
+                }
+            }
+        });
+    }
+
     fn table(&self, key: usize) -> &[u64] {
         let size = self.cands.len() * self.words;
         let start = self.slots[key] as usize * size;
@@ -430,14 +512,23 @@ impl Search<'_> {
     }
 
     /// Builds the pair table of the ordered detection pair `(a, b)` in a cell (once).
-    fn ensure_table(&self, cell: &mut CellData, a: usize, b: usize) {
+    fn ensure_table(&self, cell: &mut CellData, context: &PairContext, a: usize, b: usize) {
         let n = self.detections.len();
         let key = a * n + b;
         if cell.slots[key] != NO_TABLE {
             return;
         }
+        cell.ensure_pairs(self.db, context, a, b);
         let m = cell.cands.len();
         let words = cell.words;
+        // Every pair the table reads is computed (the pair buffers hold stale values).
+        #[cfg(debug_assertions)]
+        for_each_bit(&cell.allowed[a * words..(a + 1) * words], |i| {
+            for_each_bit(&cell.allowed[b * words..(b + 1) * words], |j| {
+                let done = cell.pairs_done[i * words + j / 64] >> (j % 64) & 1 == 1;
+                debug_assert!(i == j || done, "pair ({i}, {j}) read before it is computed");
+            });
+        });
         let theta = angle_between(&self.directions[a], &self.directions[b]);
         let tol = 2.0 * self.noise;
         let pair_det = self.pair_det(a, b);
@@ -1312,6 +1403,64 @@ impl PairValues {
     }
 }
 
+/// What computing a cell's [`PairValues`] needs besides the cell: the frame's shared pair
+/// terms, when the area is small enough to have them, and the cells' size.
+struct PairContext {
+    /// The [`PairTerms`] of every pair of the landmarks within reach of the whole area, row
+    /// by row of the triangle `(a, b)`, `b > a` (empty: computed per pair).
+    shared_pairs: Vec<PairTerms>,
+    /// Start of row `a` of `shared_pairs`: pair `(a, b)` is at `row_start[a] + b − a − 1`.
+    row_start: Vec<usize>,
+    /// The cells' ball radius, metres.
+    radius: f64,
+    /// The cells' horizontal half-diagonal, metres.
+    half_horizontal: f64,
+    /// Whether the vertical is known (the side of a pair is tested).
+    with_up: bool,
+}
+
+impl PairContext {
+    /// The values of the candidate pair `(i, j)`, `i < j` (database order) of a cell.
+    fn values(
+        &self,
+        db: &LandmarkDb,
+        cands: &[Candidate],
+        sides: &[DetSide],
+        slots: &[usize],
+        i: usize,
+        j: usize,
+    ) -> PairValues {
+        let (ci, cj) = (&cands[i], &cands[j]);
+        let (si, sj) = (&sides[i], &sides[j]);
+        let pair = if self.shared_pairs.is_empty() {
+            let (li, lj) = (&db.landmarks()[ci.index], &db.landmarks()[cj.index]);
+            PairTerms::new(
+                (&li.position_in_world, si.survey_m),
+                (&lj.position_in_world, sj.survey_m),
+                self.half_horizontal,
+            )
+        } else {
+            self.shared_pairs[self.row_start[slots[i]] + slots[j] - slots[i] - 1]
+        };
+        PairValues {
+            // The `acos` of the dot product of unit vectors (its error near 0 and π, about
+            // 1e-8 rad, is far below the bearing noise), by a polynomial: libm's `acos` took
+            // an eighth of a prior frame's time.
+            angle: fast_acos(ci.direction.dot(&cj.direction)),
+            bound: pair_angle_wander(ci, cj, pair.separation_m, self.radius)
+                + ci.survey
+                + cj.survey
+                + FAST_ACOS_MAX_ERROR_RAD,
+            // Which side of each other landmark a landmark is, seen from above.
+            det: if self.with_up {
+                det_range(si, sj, &pair)
+            } else {
+                (-1.0, 1.0)
+            },
+        }
+    }
+}
+
 /// Above this many landmark pairs within reach of the whole search area, the [`PairTerms`]
 /// are computed per cell instead of once per frame: a cold start over a city would fill a
 /// table of every pair of its landmarks, mostly never in one cell together.
@@ -1343,7 +1492,7 @@ fn cell_data(
     area_reach: f64,
     step: &Vector3<f64>,
     radius: f64,
-) -> Vec<CellData> {
+) -> (Vec<CellData>, PairContext) {
     let db = search.db;
     let options = search.options;
     let up = search.up;
@@ -1393,6 +1542,9 @@ fn cell_data(
         }
     }
     let use_shared = !shared_points.is_empty();
+    if !use_shared {
+        shared_pairs.clear();
+    }
     // Start of row `a` of the triangular `shared_pairs` (the pairs `(a, b)`, `b > a`, row by
     // row): pair `(a, b)` is at `row_start[a] + b − a − 1`.
     let g = shared_points.len();
@@ -1465,51 +1617,6 @@ fn cell_data(
             continue;
         }
         let m = cands.len();
-        // Each pair `i < j` is computed once and written at `(i, j)` and, mirrored, at
-        // `(j, i)`: the angle and its bound are symmetric, the side of the pair changes sign.
-        let mut pairs = vec![PairValues::DIAGONAL; m * m];
-        for (i, (ci, si)) in cands.iter().zip(&sides).enumerate() {
-            // The shared pairs `(slots[i], b)`, `b > slots[i]`, from `b = slots[i] + 1` on.
-            let shared_row = if use_shared {
-                &shared_pairs[row_start[slots[i]]..]
-            } else {
-                &[]
-            };
-            let rest = cands[i + 1..]
-                .iter()
-                .zip(&sides[i + 1..])
-                .zip(&slots[i + 1..]);
-            for (j, ((cj, sj), &slot_j)) in (i + 1..).zip(rest) {
-                let pair = if use_shared {
-                    shared_row[slot_j - slots[i] - 1]
-                } else {
-                    let (li, lj) = (&db.landmarks()[ci.index], &db.landmarks()[cj.index]);
-                    PairTerms::new(
-                        (&li.position_in_world, si.survey_m),
-                        (&lj.position_in_world, sj.survey_m),
-                        half_horizontal,
-                    )
-                };
-                let values = PairValues {
-                    // The `acos` of the dot product of unit vectors (its error near 0 and π,
-                    // about 1e-8 rad, is far below the bearing noise), by a polynomial:
-                    // libm's `acos` took an eighth of a prior frame's time.
-                    angle: fast_acos(ci.direction.dot(&cj.direction)),
-                    bound: pair_angle_wander(ci, cj, pair.separation_m, radius)
-                        + ci.survey
-                        + cj.survey
-                        + FAST_ACOS_MAX_ERROR_RAD,
-                    // Which side of each other landmark a landmark is, seen from above.
-                    det: if up.is_some() {
-                        det_range(si, sj, &pair)
-                    } else {
-                        (-1.0, 1.0)
-                    },
-                };
-                pairs[i * m + j] = values;
-                pairs[j * m + i] = values.mirrored();
-            }
-        }
         let words = m.div_ceil(64);
         let mut allowed = vec![0u64; n * words];
         // Per candidate: its elevation range over the cell, widened by the tilt tolerance,
@@ -1541,7 +1648,10 @@ fn cell_data(
         cell_data.push(CellData {
             centre: *centre,
             cands,
-            pairs,
+            pairs: take_pair_buffer(m * m),
+            pairs_done: vec![0; m * words],
+            slots_shared: slots.clone(),
+            sides: sides.clone(),
             indices,
             words,
             allowed,
@@ -1549,7 +1659,14 @@ fn cell_data(
             store: Vec::new(),
         });
     }
-    cell_data
+    let context = PairContext {
+        shared_pairs,
+        row_start,
+        radius,
+        half_horizontal,
+        with_up: up.is_some(),
+    };
+    (cell_data, context)
 }
 
 /// The landmark pairs of a triple, in the order of [`LevelledTriple`]'s arrays.
@@ -1873,7 +1990,8 @@ pub(super) fn run(
             ));
         }
     }
-    let mut cell_data = cell_data(&search, centres, &area_centre, reach, &step, radius);
+    let (mut cell_data, pair_context) =
+        cell_data(&search, centres, &area_centre, reach, &step, radius);
     if cell_data.is_empty() {
         return Ok(MatchResult::failed(
             MatchStatus::NoLandmarksInRange,
@@ -1958,6 +2076,13 @@ pub(super) fn run(
             .max_detection_triples
             .saturating_mul(core_size.div_ceil(options.max_core_detections));
         triples.truncate(budget);
+        // The round's triples, cheapest first: by the largest number of (cell, candidate)
+        // pairs one of its detections may be (stable, so the pseudo-random order breaks
+        // ties). The cost of a triple grows with its detections' candidates (a lamp near the
+        // horizon may be any of 80 % of a cell's candidates, a roof corner high up a tenth),
+        // and all of a round's triples are run unless one stops the search: the order decides
+        // the time to the first triple of true detections, not which triples are run.
+        triples.sort_by_key(|t| t.iter().map(|&d| allowed_counts[d]).max());
         // The next triple: a confirmation triple of the best pose when one is due (see
         // `Search::confirmation_triple`), else the next of the round's triples.
         let mut next = 0;
@@ -2006,7 +2131,7 @@ pub(super) fn run(
             'cells: for (cell_index, cell) in cell_data.iter_mut().enumerate() {
                 let words = cell.words;
                 for (p, q) in [(a, b), (a, c), (b, c)] {
-                    search.ensure_table(cell, p, q);
+                    search.ensure_table(cell, &pair_context, p, q);
                 }
                 // Landmark triples (i, j, k) that pass the three pair tables.
                 survivors.clear();
