@@ -261,38 +261,72 @@ fn same_bits(a: &Pose, b: &Pose) -> bool {
         .all(|(x, y)| x.to_bits() == y.to_bits())
 }
 
-/// At most this many [`CellData::pairs`] buffers are kept per thread for the next frame
-/// (a prior frame has about 25 cells; a cold start's thousands are not kept).
-const MAX_POOLED_PAIR_BUFFERS: usize = 64;
+/// Pair tables a cell has room for before its store grows: a median prior frame runs five
+/// detection triples, about a dozen distinct detection pairs.
+const INITIAL_PAIR_TABLES: usize = 16;
+
+/// At most this many cells' buffers are kept per thread for the next frame (a prior frame
+/// has about 25 cells; a cold start's thousands are not kept).
+const MAX_POOLED_CELLS: usize = 64;
 
 thread_local! {
-    /// Buffers of pair values freed by earlier frames of this thread. Filling a fresh
-    /// `m × m` buffer cost about 0.15 ms of a 1.3 ms prior frame (25 cells of 65 kB, with
-    /// page faults); an entry is only read once computed ([`CellData::ensure_pairs`] keeps
-    /// `pairs_done`), so a reused buffer needs no filling.
-    static PAIR_BUFFERS: RefCell<Vec<Vec<PairValues>>> = const { RefCell::new(Vec::new()) };
+    /// Cells of earlier frames of this thread, whose buffers the next frame reuses: filling
+    /// a fresh `m × m` buffer of pair values cost about 0.15 ms of a 1.3 ms prior frame (25
+    /// cells of 65 kB, with page faults). An entry of `pairs` is only read once computed
+    /// ([`CellData::ensure_pairs`] keeps `pairs_done`), so a reused one needs no filling;
+    /// every other buffer is cleared.
+    static CELL_POOL: RefCell<Vec<CellData>> = const { RefCell::new(Vec::new()) };
 }
 
-/// A buffer of at least `len` pair values, from the pool when it has one (its stale values
-/// are never read: see [`PAIR_BUFFERS`]).
-fn take_pair_buffer(len: usize) -> Vec<PairValues> {
-    let mut buffer = PAIR_BUFFERS
+/// A cell with empty buffers, from the pool when it has one (see [`CELL_POOL`]).
+fn take_cell() -> CellData {
+    CELL_POOL
         .with_borrow_mut(|pool| pool.pop())
-        .unwrap_or_default();
-    if buffer.len() < len {
-        buffer.resize(len, PairValues::DIAGONAL);
-    }
-    buffer
+        .unwrap_or_else(|| CellData {
+            centre: Vector3::zeros(),
+            cands: Vec::new(),
+            pairs: Vec::new(),
+            pairs_done: Vec::new(),
+            slots_shared: Vec::new(),
+            sides: Vec::new(),
+            indices: Vec::new(),
+            words: 0,
+            allowed: Vec::new(),
+            slots: Vec::new(),
+            store: Vec::new(),
+        })
 }
 
-impl Drop for CellData {
+/// Gives cells back to the pool (at most [`MAX_POOLED_CELLS`]); `try_with`, since a thread
+/// that ends drops its pool.
+fn recycle_cells(cells: &mut Vec<CellData>) {
+    let _ = CELL_POOL.try_with(|pool| {
+        if let Ok(mut pool) = pool.try_borrow_mut() {
+            let room = MAX_POOLED_CELLS.saturating_sub(pool.len());
+            pool.extend(cells.drain(..).take(room));
+        }
+    });
+}
+
+/// The cells of a frame; their buffers go back to the pool when the frame is done.
+struct Cells(Vec<CellData>);
+
+impl Drop for Cells {
     fn drop(&mut self) {
-        let buffer = std::mem::take(&mut self.pairs);
-        PAIR_BUFFERS.with_borrow_mut(|pool| {
-            if pool.len() < MAX_POOLED_PAIR_BUFFERS {
-                pool.push(buffer);
-            }
-        });
+        recycle_cells(&mut self.0);
+    }
+}
+
+impl std::ops::Deref for Cells {
+    type Target = Vec<CellData>;
+    fn deref(&self) -> &Vec<CellData> {
+        &self.0
+    }
+}
+
+impl std::ops::DerefMut for Cells {
+    fn deref_mut(&mut self) -> &mut Vec<CellData> {
+        &mut self.0
     }
 }
 
@@ -424,19 +458,18 @@ fn cells(area: &SearchArea, size: f64) -> Result<(Vec<Vector3<f64>>, Vector3<f64
 /// Up to `max` of the usable detections, greedily spread over the sphere (farthest-point
 /// order). A detection is unusable when no candidate of any cell may be it (class, or
 /// elevation when the vertical is known): e.g. a stray light below the horizon.
-fn core_detections(directions: &[Vector3<f64>], usable: &[bool], max: usize) -> Vec<usize> {
-    let candidates: Vec<usize> = (0..directions.len()).filter(|&k| usable[k]).collect();
+fn core_detections(angles: &[f64], usable: &[bool], max: usize) -> Vec<usize> {
+    let n = usable.len();
+    let candidates: Vec<usize> = (0..n).filter(|&k| usable[k]).collect();
     if candidates.len() <= max {
         return candidates;
     }
     let first = candidates[0];
     let mut chosen = vec![first];
-    let mut nearest: Vec<f64> = directions
-        .iter()
-        .enumerate()
-        .map(|(k, d)| {
+    let mut nearest: Vec<f64> = (0..n)
+        .map(|k| {
             if usable[k] {
-                angle_between(d, &directions[first])
+                angles[k * n + first]
             } else {
                 f64::NEG_INFINITY
             }
@@ -448,8 +481,8 @@ fn core_detections(directions: &[Vector3<f64>], usable: &[bool], max: usize) -> 
             .enumerate()
             .fold((first, 0.0), |b, (k, &a)| if a > b.1 { (k, a) } else { b });
         chosen.push(next);
-        for (k, d) in directions.iter().enumerate() {
-            nearest[k] = nearest[k].min(angle_between(d, &directions[next]));
+        for (k, nearest) in nearest.iter_mut().enumerate() {
+            *nearest = nearest.min(angles[k * n + next]);
         }
     }
     chosen
@@ -471,6 +504,8 @@ struct Search<'a> {
     /// Scratch of [`Search::verify`]: per extension detection, its world direction and
     /// whether it has been seen.
     scratch_extensions: Vec<(Vector3<f64>, bool)>,
+    /// The angle between the bearings of each two detections, radians, `n × n`.
+    angles: Vec<f64>,
     /// The rig's up direction (unit, rig frame) and its tolerance (radians), when known.
     up: Option<(Vector3<f64>, f64)>,
     /// The search area widened by the position margin of a P3P pose: a fix must lie in it.
@@ -529,7 +564,7 @@ impl Search<'_> {
                 debug_assert!(i == j || done, "pair ({i}, {j}) read before it is computed");
             });
         });
-        let theta = angle_between(&self.directions[a], &self.directions[b]);
+        let theta = self.angles[key];
         let tol = 2.0 * self.noise;
         let pair_det = self.pair_det(a, b);
         let start = cell.store.len();
@@ -793,14 +828,14 @@ impl Search<'_> {
             .collect();
         pool.sort_by_key(|&d| (allowed_counts[d], d));
         let dirs = &self.directions;
+        let n = dirs.len();
         for z in 2..pool.len() {
             for y in 1..z {
                 for x in 0..y {
                     let mut t = [pool[x], pool[y], pool[z]];
                     t.sort_unstable();
-                    let spread = (0..3).all(|p| {
-                        angle_between(&dirs[t[p]], &dirs[t[(p + 1) % 3]]) >= MIN_TRIPLE_ANGLE_RAD
-                    });
+                    let spread = (0..3)
+                        .all(|p| self.angles[t[p] * n + t[(p + 1) % 3]] >= MIN_TRIPLE_ANGLE_RAD);
                     let determinant = dirs[t[0]].dot(&dirs[t[1]].cross(&dirs[t[2]]));
                     if spread
                         && determinant.abs() > RELIABLE_DETERMINANT_NOISES * self.noise
@@ -1492,7 +1527,7 @@ fn cell_data(
     area_reach: f64,
     step: &Vector3<f64>,
     radius: f64,
-) -> (Vec<CellData>, PairContext) {
+) -> (Cells, PairContext) {
     let db = search.db;
     let options = search.options;
     let up = search.up;
@@ -1558,13 +1593,14 @@ fn cell_data(
         .collect();
 
     let mut near = Vec::new();
-    // Per candidate of the current cell: its position in `shared` and its [`DetSide`].
-    let mut slots: Vec<usize> = Vec::new();
-    let mut sides: Vec<DetSide> = Vec::new();
-    let mut cell_data: Vec<CellData> = Vec::new();
+    let mut gates: Vec<Option<(f64, f64)>> = Vec::new();
+    let mut cell_data = Cells(Vec::new());
     for (_, centre) in &keyed {
-        // The candidates, seen from the centre, in increasing database index.
-        let mut cands: Vec<Candidate> = Vec::new();
+        // The candidates, seen from the centre, in increasing database index; per candidate
+        // its position in `shared` and its [`DetSide`].
+        let mut cell = take_cell();
+        let (cands, slots, sides) = (&mut cell.cands, &mut cell.slots_shared, &mut cell.sides);
+        cands.clear();
         slots.clear();
         sides.clear();
         let mut add = |index: usize, slot: usize, position: &Vector3<f64>| {
@@ -1614,23 +1650,25 @@ fn cell_data(
             );
         }
         if cands.len() < 3 {
+            recycle_cells(&mut vec![cell]);
             continue;
         }
+        let cands = &cell.cands;
         let m = cands.len();
         let words = m.div_ceil(64);
-        let mut allowed = vec![0u64; n * words];
+        let mut allowed = std::mem::take(&mut cell.allowed);
+        allowed.clear();
+        allowed.resize(n * words, 0);
         // Per candidate: its elevation range over the cell, widened by the tilt tolerance,
         // the bearing noise and the survey error.
-        let gates: Vec<Option<(f64, f64)>> = cands
-            .iter()
-            .map(|cand| {
-                let (_, tol) = up?;
-                let v = db.landmarks()[cand.index].position_in_world - centre;
-                let (lo, hi) = elevation_range(&v, half_horizontal, half_vertical);
-                let margin = tol + search.noise + cand.survey;
-                Some((lo - margin, hi + margin))
-            })
-            .collect();
+        gates.clear();
+        gates.extend(cands.iter().map(|cand| {
+            let (_, tol) = up?;
+            let v = db.landmarks()[cand.index].position_in_world - centre;
+            let (lo, hi) = elevation_range(&v, half_horizontal, half_vertical);
+            let margin = tol + search.noise + cand.survey;
+            Some((lo - margin, hi + margin))
+        }));
         for (d, elevation) in elevations.iter().enumerate() {
             for (i, cand) in cands.iter().enumerate() {
                 if !search.compatible(d, cand.index) {
@@ -1644,20 +1682,22 @@ fn cell_data(
                 bit_set(&mut allowed[d * words..(d + 1) * words], i);
             }
         }
-        let indices = cands.iter().map(|c| c.index).collect();
-        cell_data.push(CellData {
-            centre: *centre,
-            cands,
-            pairs: take_pair_buffer(m * m),
-            pairs_done: vec![0; m * words],
-            slots_shared: slots.clone(),
-            sides: sides.clone(),
-            indices,
-            words,
-            allowed,
-            slots: vec![NO_TABLE; n * n],
-            store: Vec::new(),
-        });
+        cell.indices.clear();
+        cell.indices.extend(cands.iter().map(|c| c.index));
+        cell.centre = *centre;
+        cell.words = words;
+        cell.allowed = allowed;
+        // Stale pair values are never read (`pairs_done`).
+        if cell.pairs.len() < m * m {
+            cell.pairs.resize(m * m, PairValues::DIAGONAL);
+        }
+        cell.pairs_done.clear();
+        cell.pairs_done.resize(m * words, 0);
+        cell.slots.clear();
+        cell.slots.resize(n * n, NO_TABLE);
+        cell.store.clear();
+        cell.store.reserve(m * words * INITIAL_PAIR_TABLES);
+        cell_data.push(cell);
     }
     let context = PairContext {
         shared_pairs,
@@ -1931,9 +1971,19 @@ pub(super) fn run(
         .iter()
         .filter_map(|d| try_unit(&d.ray.direction))
         .collect();
+    // The angles between the detections' bearings, once (the pair tables of every cell,
+    // the triples' spread and the core's order use them).
+    let mut angles = vec![0.0; n * n];
     for a in 0..n {
         for b in a + 1..n {
-            if angle_between(&directions[a], &directions[b]) < DUPLICATE_ANGLE_RAD {
+            let angle = angle_between(&directions[a], &directions[b]);
+            angles[a * n + b] = angle;
+            angles[b * n + a] = angle;
+        }
+    }
+    for a in 0..n {
+        for b in a + 1..n {
+            if angles[a * n + b] < DUPLICATE_ANGLE_RAD {
                 return Ok(MatchResult::failed(
                     MatchStatus::DuplicateDetections,
                     n,
@@ -1967,6 +2017,7 @@ pub(super) fn run(
         scratch_dirs: Vec::new(),
         scratch_best: Vec::new(),
         scratch_extensions: Vec::new(),
+        angles,
         up,
         area_min: area.min_in_world.add_scalar(-position_margin),
         area_max: area.max_in_world.add_scalar(position_margin),
@@ -2023,7 +2074,7 @@ pub(super) fn run(
     let mut confirmations_tried: Vec<[usize; 3]> = Vec::new();
     // Every usable detection in farthest-point order; round `r` draws its triples from the
     // first `max_core_detections · CORE_GROWTH^r` of them.
-    let order = core_detections(&search.directions, &usable, n_usable);
+    let order = core_detections(&search.angles, &usable, n_usable);
     let mut survivors: Vec<[usize; 3]> = Vec::new();
     // Per landmark triple of the current detection triple: its index in `to_solve` (and in
     // `solved_ranges`, the range of `solved_poses` that holds its P3P poses inside the area,
@@ -2061,10 +2112,8 @@ pub(super) fn run(
             for y in 1..z {
                 for x in 0..y {
                     let t = [core[x], core[y], core[z]];
-                    let ok = (0..3).all(|p| {
-                        angle_between(&search.directions[t[p]], &search.directions[t[(p + 1) % 3]])
-                            >= MIN_TRIPLE_ANGLE_RAD
-                    });
+                    let ok = (0..3)
+                        .all(|p| search.angles[t[p] * n + t[(p + 1) % 3]] >= MIN_TRIPLE_ANGLE_RAD);
                     if ok {
                         triples.push(t);
                     }
