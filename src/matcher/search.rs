@@ -371,6 +371,7 @@ impl CellData {
         });
     }
 
+    /// The whole (built) table of the ordered detection pair `key`.
     fn table(&self, key: usize) -> &[u64] {
         let size = self.cands.len() * self.words;
         let start = self.slots[key] as usize * size;
