@@ -1507,8 +1507,10 @@ const MAX_SHARED_PAIRS: usize = 1 << 15;
 const REACH_SLACK: f64 = 1e-9;
 
 /// The cells with at least three candidates, nearest to the area's centre first, each with
-/// its candidates seen from the centre, their pairwise angles, bounds and (with a known
-/// vertical) determinant ranges, and per detection the candidates it may be.
+/// its candidates seen from the centre and per detection the candidates it may be, and what
+/// computing their pair values needs ([`PairContext`]): the pairwise angles, bounds and
+/// (with a known vertical) determinant ranges are computed when a pair table first reads
+/// them ([`CellData::ensure_pairs`]).
 ///
 /// Work that does not depend on the cell is done once: the detections' elevations, and for a
 /// small area (a prior) the landmarks within reach of the whole area, gathered contiguously,
@@ -1578,9 +1580,6 @@ fn cell_data(
         }
     }
     let use_shared = !shared_points.is_empty();
-    if !use_shared {
-        shared_pairs.clear();
-    }
     // Start of row `a` of the triangular `shared_pairs` (the pairs `(a, b)`, `b > a`, row by
     // row): pair `(a, b)` is at `row_start[a] + b − a − 1`.
     let g = shared_points.len();
