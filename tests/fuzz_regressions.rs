@@ -177,10 +177,19 @@ fn matcher_area_of_a_million_cells_is_refused() {
         cell_size_m: 1.0,
         ..MatchOptions::default()
     };
+    // A box of 10⁶ cells; the cylinder within it stops counting its rings past the limit.
+    let square = SearchArea {
+        horizontal_radius_m: None,
+        ..area
+    };
     assert_eq!(
-        vgps::matcher::match_detections(&db, &detections, &area, &options),
+        vgps::matcher::match_detections(&db, &detections, &square, &options),
         Err(MatchError::AreaTooLarge(1_000_000))
     );
+    assert!(matches!(
+        vgps::matcher::match_detections(&db, &detections, &area, &options),
+        Err(MatchError::AreaTooLarge(n)) if n > vgps::matcher::MAX_CELLS
+    ));
 }
 
 /// `matcher` timeout-5b5ed533: the input of timeout-73ce5f50 again, now with 250,000 cells

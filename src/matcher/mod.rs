@@ -235,13 +235,23 @@ impl Detection {
     }
 }
 
-/// Where the rig may be: an axis-aligned box in the world frame.
+/// Where the rig may be: an axis-aligned box in the world frame, or a vertical cylinder (a
+/// prior position with a horizontal radius, [`SearchArea::around`]) given with its bounding
+/// box.
+///
+/// A cylinder is covered by rings of round cells ([`MatchOptions::cell_size_m`]): a 30 m
+/// prior needs 21 cells instead of the 25 of its bounding square, and a pose outside the
+/// radius is not a fix.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SearchArea {
     /// Lower corner, metres.
     pub min_in_world: Vector3<f64>,
     /// Upper corner, metres.
     pub max_in_world: Vector3<f64>,
+    /// When set, the area is also within this horizontal distance of the box's centre
+    /// (metres, finite and non-negative; [`match_detections`] refuses others): a vertical
+    /// cylinder, of which the box is the bounding box. `None`: the box.
+    pub horizontal_radius_m: Option<f64>,
 }
 
 impl SearchArea {
@@ -253,11 +263,26 @@ impl SearchArea {
         ok.then_some(Self {
             min_in_world,
             max_in_world,
+            horizontal_radius_m: None,
         })
     }
 
-    /// The box around a prior position: `± horizontal_radius_m` east and north,
-    /// `± vertical_half_range_m` up (`None` for non-finite or negative sizes).
+    /// The vertical cylinder around a prior position: within `horizontal_radius_m` of it
+    /// horizontally, `± vertical_half_range_m` up (`None` for non-finite or negative sizes).
+    ///
+    /// # Units
+    /// Metres.
+    ///
+    /// # Example
+    /// ```
+    /// use nalgebra::Vector3;
+    /// use vgps::matcher::SearchArea;
+    ///
+    /// let area = SearchArea::around(&Vector3::new(100.0, 50.0, 2.0), 30.0, 1.0).unwrap();
+    /// assert!(area.contains(&Vector3::new(121.0, 71.0, 2.5))); // 29.7 m away
+    /// assert!(!area.contains(&Vector3::new(122.0, 72.0, 2.0))); // 31.1 m: in the box only
+    /// assert!(!area.contains(&Vector3::new(100.0, 50.0, 3.5))); // too high
+    /// ```
     pub fn around(
         center: &Vector3<f64>,
         horizontal_radius_m: f64,
@@ -271,7 +296,10 @@ impl SearchArea {
             horizontal_radius_m,
             vertical_half_range_m,
         );
-        Self::try_new(center - d, center + d)
+        Self::try_new(center - d, center + d).map(|area| Self {
+            horizontal_radius_m: Some(horizontal_radius_m),
+            ..area
+        })
     }
 
     /// The horizontal extent of a database's landmarks (grown by `margin_m`) with heights
@@ -292,6 +320,18 @@ impl SearchArea {
     /// The centre of the box.
     pub fn center(&self) -> Vector3<f64> {
         (self.min_in_world + self.max_in_world) * 0.5
+    }
+
+    /// Whether a point lies in the area: in the box and, for a cylinder, within its radius
+    /// of the centre horizontally.
+    pub fn contains(&self, point_in_world: &Vector3<f64>) -> bool {
+        let in_box = (0..3).all(|k| {
+            point_in_world[k] >= self.min_in_world[k] && point_in_world[k] <= self.max_in_world[k]
+        });
+        in_box
+            && self
+                .horizontal_radius_m
+                .is_none_or(|r| (point_in_world - self.center()).xy().norm() <= r)
     }
 }
 
@@ -482,8 +522,12 @@ pub enum MatchError {
     /// An option is out of its domain.
     #[error("invalid option {0}")]
     InvalidOption(&'static str),
-    /// The search area needs more than [`MAX_CELLS`] cells.
-    #[error("the search area needs {0} cells (at most {MAX_CELLS}): use larger cells")]
+    /// The search area's horizontal radius is negative or not finite.
+    #[error("invalid search area: horizontal_radius_m must be finite and non-negative")]
+    InvalidArea,
+    /// The search area needs more than [`MAX_CELLS`] cells: at least this many (a cylinder's
+    /// rings are counted until the limit is passed).
+    #[error("the search area needs at least {0} cells (at most {MAX_CELLS}): use larger cells")]
     AreaTooLarge(usize),
 }
 

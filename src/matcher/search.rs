@@ -431,12 +431,131 @@ fn validate(detections: &[Detection], options: &MatchOptions) -> Result<(), Matc
     Ok(())
 }
 
-/// Cell centres covering the area, and the cells' edges (metres per axis).
-fn cells(area: &SearchArea, size: f64) -> Result<(Vec<Vector3<f64>>, Vector3<f64>), MatchError> {
+/// The shape of the search cells. Every cell lies within the vertical cylinder of radius
+/// `half_horizontal` and half-height `half_vertical` around its centre, and within the ball
+/// of `radius` around it.
+#[derive(Clone, Copy, Debug)]
+struct CellShape {
+    /// Radius of the ball around a centre that holds the cell, metres.
+    radius: f64,
+    /// Horizontal radius of the cylinder that holds the cell, metres.
+    half_horizontal: f64,
+    /// Half-height of the cell, metres.
+    half_vertical: f64,
+}
+
+/// Relative widening of the disc a ring covering must cover (and narrowing of the cells'
+/// radius it may use), for the rounding of the centres' positions.
+const RING_COVER_SLACK: f64 = 1e-9;
+
+/// How many ring sizes past the fewest that can close a ring are compared (each ring takes
+/// the size that covers the most area per cell).
+const RING_SIZES_TRIED: usize = 24;
+
+/// Centres (relative to the disc's centre) of discs of radius `r` that together cover the
+/// disc of radius `big`; `Err(count)` once more than `limit` would be needed.
+///
+/// Rings from the outside in, then one disc at the centre. `n` discs whose centres are
+/// evenly spaced on the circle of radius `ρ` cover every point at a distance `t` from the
+/// centre with `t² + ρ² − 2tρ cos α ≤ r²`, `α = π/n` (the point midway between two
+/// centres is the farthest from both), i.e. the annulus
+/// `ρ cos α ∓ √(r² − ρ² sin² α)`. A ring whose outer edge is the radius still to cover,
+/// `R`, has `ρ = R cos α − √(r² − R² sin² α)` (the smaller root of
+/// `ρ² − 2Rρ cos α + R² − r² = 0`, real when `R sin α ≤ r`; positive while `R > r`), and
+/// covers down to its inner edge, the next ring's `R`. Of the ring sizes that close, the one
+/// that covers the most area per disc is taken. A disc of radius 30 m with `r` = 8.5 m
+/// takes rings of 13 and 7 cells and the centre: 21 cells, against the 25 squares of 12 m
+/// (the same half-diagonal) over its bounding box.
+fn ring_centres(big: f64, r: f64, limit: usize) -> Result<Vec<Vector2<f64>>, usize> {
+    let r = r * (1.0 - RING_COVER_SLACK);
+    let mut outer = big * (1.0 + RING_COVER_SLACK) + RING_COVER_SLACK;
+    let mut centres = Vec::new();
+    while outer > r {
+        // The fewest cells that can close a ring: `outer · sin(π/n) ≤ r`.
+        let fewest = (std::f64::consts::PI / (r / outer).asin()).ceil().max(3.0) as usize;
+        let mut best: Option<(f64, f64, usize, f64)> = None;
+        for n in fewest..fewest + RING_SIZES_TRIED {
+            let (sin_a, cos_a) = (std::f64::consts::PI / n as f64).sin_cos();
+            let d = r * r - (outer * sin_a).powi(2);
+            if d < 0.0 {
+                continue;
+            }
+            let rho = outer * cos_a - d.sqrt();
+            let inner = rho * cos_a - (r * r - (rho * sin_a).powi(2)).max(0.0).sqrt();
+            let per_cell = (outer * outer - inner.max(0.0).powi(2)) / n as f64;
+            if best.is_none_or(|(b, ..)| per_cell > b) {
+                best = Some((per_cell, inner, n, rho));
+            }
+        }
+        let Some((_, inner, n, rho)) = best else {
+            break;
+        };
+        if centres.len() + n > limit {
+            return Err(centres.len() + n);
+        }
+        centres.extend((0..n).map(|k| {
+            let (sin, cos) = (std::f64::consts::TAU * k as f64 / n as f64).sin_cos();
+            Vector2::new(rho * cos, rho * sin)
+        }));
+        if inner <= 0.0 {
+            return Ok(centres);
+        }
+        outer = inner;
+    }
+    if centres.len() >= limit {
+        return Err(centres.len() + 1);
+    }
+    centres.push(Vector2::zeros());
+    Ok(centres)
+}
+
+/// The cells that cover the search area: their centres and shape.
+///
+/// A box: a grid of `size`-edged cells (as many along each axis as it takes, stretched to
+/// fit). A cylinder: layers of height `size` (stretched to fit), each covered by rings of
+/// round cells with the half-diagonal of a square `size` cell ([`ring_centres`]); a cell
+/// whose disc misses the box is dropped.
+fn cells(area: &SearchArea, size: f64) -> Result<(Vec<Vector3<f64>>, CellShape), MatchError> {
     let extent = area.max_in_world - area.min_in_world;
-    let counts: Vec<usize> = (0..3)
-        .map(|k| ((extent[k] / size).ceil() as usize).max(1))
-        .collect();
+    let count = |e: f64| ((e / size).ceil() as usize).max(1);
+    if let Some(big) = area.horizontal_radius_m {
+        if !(big.is_finite() && big >= 0.0) {
+            return Err(MatchError::InvalidArea);
+        }
+        let layers = count(extent.z);
+        let height = extent.z / layers as f64;
+        let half_horizontal = size * std::f64::consts::FRAC_1_SQRT_2;
+        let half_vertical = 0.5 * height;
+        let centre = area.center();
+        let limit = MAX_CELLS / layers;
+        let ring = ring_centres(big, half_horizontal, limit)
+            .map_err(|n| MatchError::AreaTooLarge(n.saturating_mul(layers)))?;
+        // The cells whose disc meets the box (all of them for `SearchArea::around`).
+        let ring: Vec<Vector2<f64>> = ring
+            .into_iter()
+            .map(|p| centre.xy() + p)
+            .filter(|p| {
+                let nearest = Vector2::new(
+                    p.x.clamp(area.min_in_world.x, area.max_in_world.x),
+                    p.y.clamp(area.min_in_world.y, area.max_in_world.y),
+                );
+                (nearest - p).norm() <= half_horizontal
+            })
+            .collect();
+        let centres = (0..layers)
+            .flat_map(|iz| {
+                let z = area.min_in_world.z + height * (iz as f64 + 0.5);
+                ring.iter().map(move |p| Vector3::new(p.x, p.y, z))
+            })
+            .collect();
+        let shape = CellShape {
+            radius: half_horizontal.hypot(half_vertical),
+            half_horizontal,
+            half_vertical,
+        };
+        return Ok((centres, shape));
+    }
+    let counts: Vec<usize> = (0..3).map(|k| count(extent[k])).collect();
     let total = counts[0]
         .saturating_mul(counts[1])
         .saturating_mul(counts[2]);
@@ -453,7 +572,12 @@ fn cells(area: &SearchArea, size: f64) -> Result<(Vec<Vector3<f64>>, Vector3<f64
             }
         }
     }
-    Ok((centres, step))
+    let shape = CellShape {
+        radius: 0.5 * step.norm(),
+        half_horizontal: 0.5 * step.xy().norm(),
+        half_vertical: 0.5 * step.z,
+    };
+    Ok((centres, shape))
 }
 
 /// Up to `max` of the usable detections, greedily spread over the sphere (farthest-point
@@ -513,6 +637,8 @@ struct Search<'a> {
     area_min: Vector3<f64>,
     /// See `area_min`.
     area_max: Vector3<f64>,
+    /// For a cylinder: its axis (horizontal position) and radius, widened likewise.
+    area_disc: Option<(Vector2<f64>, f64)>,
     /// Landmark sets, refinements and scratch kept for the conclusion.
     conclusion: ConclusionCache,
 }
@@ -531,7 +657,11 @@ impl Search<'_> {
     /// Whether a pose lies in the search area (widened by the position margin). The area is
     /// the prior: a hypothesis outside it, e.g. one that refinement moved away, is not a fix.
     fn within_area(&self, pose: &Pose) -> bool {
-        in_box(&pose.translation.vector, &self.area_min, &self.area_max)
+        let t = &pose.translation.vector;
+        in_box(t, &self.area_min, &self.area_max)
+            && self
+                .area_disc
+                .is_none_or(|(centre, r)| (t.xy() - centre).norm() <= r)
     }
 
     /// With a known vertical: `det[up, b_a, b_b]` and how far the true value may be from it
@@ -1528,8 +1658,7 @@ fn cell_data(
     centres: Vec<Vector3<f64>>,
     area_centre: &Vector3<f64>,
     area_reach: f64,
-    step: &Vector3<f64>,
-    radius: f64,
+    shape: &CellShape,
 ) -> (Cells, PairContext) {
     let db = search.db;
     let options = search.options;
@@ -1541,8 +1670,11 @@ fn cell_data(
         .map(|c| ((c - area_centre).norm(), c))
         .collect();
     keyed.sort_by(|x, y| x.0.total_cmp(&y.0));
-    let half_horizontal = 0.5 * step.xy().norm();
-    let half_vertical = 0.5 * step.z;
+    let CellShape {
+        radius,
+        half_horizontal,
+        half_vertical,
+    } = *shape;
     // A cell's candidates: the landmarks within this distance of its centre.
     let cell_reach = options.visibility_range_m + radius;
 
@@ -1958,8 +2090,8 @@ pub(super) fn run(
 ) -> Result<MatchResult, MatchError> {
     validate(detections, options)?;
     let n = detections.len();
-    let (centres, step) = cells(area, options.cell_size_m)?;
-    let radius = 0.5 * step.norm();
+    let (centres, shape) = cells(area, options.cell_size_m)?;
+    let radius = shape.radius;
     if n < 3 {
         return Ok(MatchResult::failed(
             MatchStatus::TooFewDetections,
@@ -2021,6 +2153,9 @@ pub(super) fn run(
         up,
         area_min: area.min_in_world.add_scalar(-position_margin),
         area_max: area.max_in_world.add_scalar(position_margin),
+        area_disc: area
+            .horizontal_radius_m
+            .map(|r| (area.center().xy(), r + position_margin)),
         conclusion: ConclusionCache::default(),
     };
 
@@ -2029,8 +2164,13 @@ pub(super) fn run(
     let mut near = Vec::new();
     let area_centre = area.center();
     // Fewer than three landmarks within reach of the whole area: no cell to visit.
-    let reach =
-        0.5 * (area.max_in_world - area.min_in_world).norm() + radius + options.visibility_range_m;
+    // The farthest a point of the area is from its centre: half the box's diagonal, or less
+    // for a cylinder.
+    let half_box = 0.5 * (area.max_in_world - area.min_in_world).norm();
+    let half_extent = area.horizontal_radius_m.map_or(half_box, |r| {
+        half_box.min(r.hypot(0.5 * (area.max_in_world.z - area.min_in_world.z)))
+    });
+    let reach = half_extent + radius + options.visibility_range_m;
     if reach.is_finite() {
         db.within(&area_centre, reach, &mut near);
         if near.len() < 3 {
@@ -2041,8 +2181,7 @@ pub(super) fn run(
             ));
         }
     }
-    let (mut cell_data, pair_context) =
-        cell_data(&search, centres, &area_centre, reach, &step, radius);
+    let (mut cell_data, pair_context) = cell_data(&search, centres, &area_centre, reach, &shape);
     if cell_data.is_empty() {
         return Ok(MatchResult::failed(
             MatchStatus::NoLandmarksInRange,
@@ -2982,6 +3121,53 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn ring_centres_cover_every_point_of_the_disc() {
+        let mut g = crate::synthetic::rng(21);
+        for (big, r) in [
+            (30.0, 12.0 * std::f64::consts::FRAC_1_SQRT_2),
+            (30.0, 5.0),
+            (15.0, 8.0),
+            (7.9, 8.0),
+            (0.0, 8.0),
+            (250.0, 8.5),
+            (1.0, 0.05),
+        ] {
+            let centres = ring_centres(big, r, MAX_CELLS).unwrap();
+            let nearest = |p: Vector2<f64>| {
+                centres
+                    .iter()
+                    .map(|c| (p - c).norm())
+                    .fold(f64::INFINITY, f64::min)
+            };
+            // Random points, and the circle's edge densely (where a ring's gaps are).
+            for k in 0..20_000 {
+                let p = if k % 2 == 0 {
+                    let (t, u): (f64, f64) = (g.random_range(0.0..1.0), g.random_range(0.0..1.0));
+                    let (sin, cos) = (std::f64::consts::TAU * t).sin_cos();
+                    Vector2::new(cos, sin) * (big * u.sqrt())
+                } else {
+                    let (sin, cos) = (std::f64::consts::TAU * k as f64 / 20_000.0).sin_cos();
+                    Vector2::new(cos, sin) * big
+                };
+                assert!(nearest(p) <= r, "{big} {r}: {p:?} is {} away", nearest(p));
+            }
+            // Fewer cells than the grid over the bounding box, for a disc of a few cells.
+            let side = r * std::f64::consts::SQRT_2;
+            let grid = ((2.0 * big / side).ceil().max(1.0) as usize).pow(2);
+            assert!(
+                centres.len() <= grid,
+                "{big} {r}: {} > {grid}",
+                centres.len()
+            );
+        }
+        // The prior of the Monte Carlo (30 m, 12 m cells): 21 cells instead of 25.
+        let prior = ring_centres(30.0, 12.0 * std::f64::consts::FRAC_1_SQRT_2, MAX_CELLS);
+        assert_eq!(prior.map(|c| c.len()), Ok(21));
+        // Too many cells: refused with the count so far.
+        assert!(ring_centres(1e4, 1.0, 1000).is_err_and(|n| n > 1000));
     }
 
     #[test]

@@ -419,6 +419,7 @@ fn unreachable_area(centre: &Vector3<f64>) -> SearchArea {
     SearchArea {
         min_in_world: *centre,
         max_in_world: *centre,
+        horizontal_radius_m: None,
     }
 }
 
