@@ -62,7 +62,7 @@ struct Candidate {
     /// Half-width of the direction's wander over the cell, radians (π when the landmark is
     /// within the cell's ball).
     wander: f64,
-    /// The survey term `k σ_m / max(range, radius)`, radians.
+    /// The survey term [`survey_angle`] of the landmark's survey bound `k σ_m`, radians.
     survey: f64,
     /// `1 / (range − radius)`, the reciprocal of the least range over the cell's ball
     /// (`+∞` when the landmark is within the ball), 1/metres.
@@ -100,6 +100,26 @@ impl Candidate {
                 1.0 / (range - radius)
             },
         }
+    }
+}
+
+/// How far the direction to a landmark may turn, seen from any point of a cell's ball
+/// (`radius` around a centre `range` metres from the landmark), when the landmark is anywhere
+/// within `survey_m` of its surveyed position: `asin(survey_m / (range − radius))` (the
+/// half-angle of the cone tangent to the survey ball from the nearest viewpoint), `π` when
+/// the survey ball may reach the viewpoint, `0` without a survey error. Radians.
+///
+/// The pair tables and the elevation gates add it per landmark to their bounds, which hold
+/// the surveyed positions seen from the ball.
+fn survey_angle(survey_m: f64, range: f64, radius: f64) -> f64 {
+    if survey_m <= 0.0 {
+        return 0.0;
+    }
+    let nearest = range - radius;
+    if nearest > survey_m {
+        (survey_m / nearest).asin()
+    } else {
+        std::f64::consts::PI
     }
 }
 
@@ -1748,7 +1768,7 @@ fn cell_data(
                 direction,
                 range,
                 radius,
-                e / range.max(radius),
+                survey_angle(e, range, radius),
             ));
             slots.push(slot);
             sides.push(DetSide::new(&v, range, e, radius, half_horizontal));
@@ -3041,6 +3061,31 @@ mod tests {
         }
         // The gradient bound is the tighter one for most pairs.
         assert!(tighter > 1_000, "{tighter}");
+    }
+
+    #[test]
+    fn survey_angle_bounds_every_survey_error_seen_from_the_ball() {
+        let mut r = crate::synthetic::rng(22);
+        let mut useful = 0;
+        for _ in 0..2_000 {
+            let radius = r.random_range(0.5..10.0);
+            let survey = r.random_range(0.01..2.0);
+            let l = crate::synthetic::random_unit_vector(&mut r) * r.random_range(0.0..60.0);
+            let bound = survey_angle(survey, l.norm(), radius);
+            useful += usize::from(bound < 0.1);
+            for _ in 0..50 {
+                let x = crate::synthetic::random_unit_vector(&mut r)
+                    * radius
+                    * r.random_range(0.0..1.0f64).cbrt();
+                let moved = l + crate::synthetic::random_unit_vector(&mut r)
+                    * survey
+                    * r.random_range(0.0..1.0f64).cbrt();
+                let turn = angle_between(&(moved - x), &(l - x));
+                assert!(turn <= bound + 1e-12, "{turn} > {bound}");
+            }
+        }
+        assert!(useful > 1_000, "{useful}");
+        assert_eq!(survey_angle(0.0, 5.0, 8.0), 0.0);
     }
 
     #[test]
