@@ -1743,9 +1743,18 @@ fn cell_data(
         .iter()
         .map(|d| up.map(|(u, _)| d.dot(&u).clamp(-1.0, 1.0).asin()))
         .collect();
+    // Whether a detection has a class (only then are classes compared).
+    let classed = search.detections.iter().any(|d| d.class.is_some());
+    // With a known vertical, the detections in increasing elevation: the detections within a
+    // candidate's elevation gate are a run of them.
+    let mut by_elevation: Vec<(f64, usize)> = elevations
+        .iter()
+        .enumerate()
+        .filter_map(|(d, e)| e.map(|e| (e, d)))
+        .collect();
+    by_elevation.sort_by(|x, y| x.0.total_cmp(&y.0));
 
     let mut near = Vec::new();
-    let mut gates: Vec<Option<(f64, f64)>> = Vec::new();
     let mut cell_data = Cells(Vec::new());
     for (_, centre) in &keyed {
         // The candidates, seen from the centre, in increasing database index; per candidate
@@ -1813,25 +1822,30 @@ fn cell_data(
         allowed.resize(n * words, 0);
         // Per candidate: its elevation range over the cell, widened by the tilt tolerance,
         // the bearing noise and the survey error.
-        gates.clear();
-        gates.extend(cands.iter().map(|cand| {
-            let (_, tol) = up?;
-            let v = db.landmarks()[cand.index].position_in_world - centre;
-            let (lo, hi) = elevation_range(&v, half_horizontal, half_vertical);
-            let margin = tol + search.noise + cand.survey;
-            Some((lo - margin, hi + margin))
-        }));
-        for (d, elevation) in elevations.iter().enumerate() {
-            for (i, cand) in cands.iter().enumerate() {
-                if !search.compatible(d, cand.index) {
-                    continue;
+        // Candidate by candidate, its bit in the row of each detection it may be: with a
+        // known vertical those within its elevation gate (a run of `by_elevation`), else all.
+        for (i, cand) in cands.iter().enumerate() {
+            let (word, bit) = (i / 64, 1u64 << (i % 64));
+            let mut set = |d: usize| {
+                if !classed || search.compatible(d, cand.index) {
+                    allowed[d * words + word] |= bit;
                 }
-                if let (Some(e), Some((lo, hi))) = (elevation, gates[i])
-                    && (*e < lo || *e > hi)
-                {
-                    continue;
+            };
+            match up {
+                Some((_, tol)) => {
+                    let v = db.landmarks()[cand.index].position_in_world - centre;
+                    let (lo, hi) = elevation_range(&v, half_horizontal, half_vertical);
+                    let margin = tol + search.noise + cand.survey;
+                    let (lo, hi) = (lo - margin, hi + margin);
+                    let first = by_elevation.partition_point(|&(e, _)| e < lo);
+                    for &(e, d) in &by_elevation[first..] {
+                        if e > hi {
+                            break;
+                        }
+                        set(d);
+                    }
                 }
-                bit_set(&mut allowed[d * words..(d + 1) * words], i);
+                None => (0..n).for_each(&mut set),
             }
         }
         cell.indices.clear();
