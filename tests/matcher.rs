@@ -196,11 +196,7 @@ fn a_prior_is_a_disc_not_its_bounding_square() {
     let world = CityWorld::generate(&mut g, &CityConfig::default());
     let db = world.landmark_db().unwrap();
     let config = FrameConfig::default();
-    let options = MatchOptions {
-        sigma_rad: config.sigma_rad,
-        up_in_rig: Some((Vector3::z(), 4.0f64.to_radians())),
-        ..MatchOptions::default()
-    };
+    let options = up4_options();
     let (mut inside, mut outside) = (0, 0);
     for _ in 0..6 {
         let pose = world.random_rig_pose(&mut g);
@@ -253,11 +249,7 @@ fn a_known_vertical_gives_the_same_right_fixes() {
     let db = world.landmark_db().unwrap();
     let config = FrameConfig::default();
     // The synthetic rig tilts by up to 3°: a 4° tolerance always holds the truth.
-    let options = MatchOptions {
-        sigma_rad: config.sigma_rad,
-        up_in_rig: Some((Vector3::z(), 4.0f64.to_radians())),
-        ..MatchOptions::default()
-    };
+    let options = up4_options();
     let frames = 20;
     let mut right = 0;
     for _ in 0..frames {
