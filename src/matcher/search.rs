@@ -653,12 +653,9 @@ struct Search<'a> {
     angles: Vec<f64>,
     /// The rig's up direction (unit, rig frame) and its tolerance (radians), when known.
     up: Option<(Vector3<f64>, f64)>,
-    /// The search area widened by the position margin of a P3P pose: a fix must lie in it.
-    area_min: Vector3<f64>,
-    /// See `area_min`.
-    area_max: Vector3<f64>,
-    /// For a cylinder: its axis (horizontal position) and radius, widened likewise.
-    area_disc: Option<(Vector2<f64>, f64)>,
+    /// The search area widened by the position margin of a P3P pose (its box, and a
+    /// cylinder's radius): a fix must lie in it.
+    widened_area: SearchArea,
     /// Landmark sets, refinements and scratch kept for the conclusion.
     conclusion: ConclusionCache,
 }
@@ -677,11 +674,7 @@ impl Search<'_> {
     /// Whether a pose lies in the search area (widened by the position margin). The area is
     /// the prior: a hypothesis outside it, e.g. one that refinement moved away, is not a fix.
     fn within_area(&self, pose: &Pose) -> bool {
-        let t = &pose.translation.vector;
-        in_box(t, &self.area_min, &self.area_max)
-            && self
-                .area_disc
-                .is_none_or(|(centre, r)| (t.xy() - centre).norm() <= r)
+        self.widened_area.contains(&pose.translation.vector)
     }
 
     /// With a known vertical: `det[up, b_a, b_b]` and how far the true value may be from it
@@ -2185,11 +2178,11 @@ pub(super) fn run(
         scratch_extensions: Vec::new(),
         angles,
         up,
-        area_min: area.min_in_world.add_scalar(-position_margin),
-        area_max: area.max_in_world.add_scalar(position_margin),
-        area_disc: area
-            .horizontal_radius_m
-            .map(|r| (area.center().xy(), r + position_margin)),
+        widened_area: SearchArea {
+            min_in_world: area.min_in_world.add_scalar(-position_margin),
+            max_in_world: area.max_in_world.add_scalar(position_margin),
+            horizontal_radius_m: area.horizontal_radius_m.map(|r| r + position_margin),
+        },
         conclusion: ConclusionCache::default(),
     };
 
