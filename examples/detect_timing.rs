@@ -10,11 +10,9 @@ use std::hint::black_box;
 use std::time::Instant;
 use vgps::imaging::{DecodeLimits, LampDetector, decode_png};
 
-fn main() -> anyhow::Result<()> {
+fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let dir = args
-        .first()
-        .ok_or_else(|| anyhow::anyhow!("usage: detect_timing DIR [REPEATS]"))?;
+    let dir = args.first().ok_or("usage: detect_timing DIR [REPEATS]")?;
     let repeats: usize = args.get(1).map_or(Ok(5), |s| s.parse())?;
     let mut paths: Vec<_> = std::fs::read_dir(dir)?
         .filter_map(|e| e.ok().map(|e| e.path()))

@@ -14,7 +14,7 @@
 use std::hint::black_box;
 use std::sync::Arc;
 use std::time::Instant;
-use vgps::cli::replay::gnss_at;
+use vgps::drive::gnss::gnss_at;
 use vgps::localizer::{Frame, GnssPosition, LandmarkMap, Localizer, LocalizerStatus};
 use vgps::simulate::{Preset, Scenario, simulate};
 

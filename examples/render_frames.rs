@@ -13,12 +13,12 @@ use vgps::imaging::{RenderOptions, Renderer, SpotKind, encode_png};
 use vgps::synthetic::calibration_files::ladybug2_rig;
 use vgps::synthetic::night::{StreetConfig, lights_in_camera, street_lamps};
 
-fn main() -> anyhow::Result<()> {
+fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let dir =
-        PathBuf::from(args.first().ok_or_else(|| {
-            anyhow::anyhow!("usage: render_frames DIR [FRAMES] [SEED] [CLUTTER]")
-        })?);
+    let dir = PathBuf::from(
+        args.first()
+            .ok_or("usage: render_frames DIR [FRAMES] [SEED] [CLUTTER]")?,
+    );
     let frames: usize = args.get(1).map_or(Ok(10), |s| s.parse())?;
     let seed: u64 = args.get(2).map_or(Ok(1), |s| s.parse())?;
     let clutter: usize = args.get(3).map_or(Ok(6), |s| s.parse())?;

@@ -1,4 +1,4 @@
-//! Runs every fuzz-target body (`vgps::fuzzing`) over every file of the committed seed
+//! Runs every fuzz-target body (`vgps_fuzz_bodies`) over every file of the committed seed
 //! corpus `fuzz/corpus/<target>/` on stable, so that CI exercises the corpus without
 //! nightly or cargo-fuzz. The bodies panic when an invariant is broken.
 
@@ -8,7 +8,7 @@ use std::path::Path;
 fn every_target_has_a_corpus_and_passes_it() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/corpus");
     let mut total = 0;
-    for (name, body) in vgps::fuzzing::TARGETS {
+    for (name, body) in vgps_fuzz_bodies::TARGETS {
         let dir = root.join(name);
         let mut files: Vec<_> = std::fs::read_dir(&dir)
             .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
@@ -24,12 +24,12 @@ fn every_target_has_a_corpus_and_passes_it() {
         }
         total += files.len();
     }
-    assert!(total >= vgps::fuzzing::TARGETS.len());
+    assert!(total >= vgps_fuzz_bodies::TARGETS.len());
 }
 
 #[test]
 fn every_target_survives_empty_and_tiny_inputs() {
-    for (_, body) in vgps::fuzzing::TARGETS {
+    for (_, body) in vgps_fuzz_bodies::TARGETS {
         for data in [&b""[..], b"\0", b"\xff\xff\xff\xff", b"id,lat,lon,alt\n"] {
             body(data);
         }
@@ -39,13 +39,13 @@ fn every_target_survives_empty_and_tiny_inputs() {
 #[test]
 fn every_target_has_a_fuzz_target_file() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/fuzz_targets");
-    for (name, _) in vgps::fuzzing::TARGETS {
+    for (name, _) in vgps_fuzz_bodies::TARGETS {
         let file = root.join(format!("{name}.rs"));
         let text =
             std::fs::read_to_string(&file).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
         assert!(
-            text.contains("vgps::fuzzing::"),
-            "{} does not call vgps::fuzzing",
+            text.contains("vgps_fuzz_bodies::"),
+            "{} does not call vgps_fuzz_bodies",
             file.display()
         );
     }

@@ -1,5 +1,5 @@
 //! Inputs that made a fuzz target fail (see `docs/fuzzing.md`), replayed through the same
-//! code path (`vgps::fuzzing::<target>`) and checked directly on the library function.
+//! code path (`vgps_fuzz_bodies::<target>`) and checked directly on the library function.
 
 /// Three detections along the rig's axes, from the rig's origin.
 fn axis_detections() -> Vec<vgps::matcher::Detection> {
@@ -28,7 +28,7 @@ fn nmea_time_with_multibyte_characters_is_an_invalid_field() {
     let data = hex(
         "244750524d432c3132303030302e30302c412c343830372e303338302c4e2c30313133312e3030302c343830372e303338302c4e2c30313133312e303030302c452c302e302c302e302c3233303339342c2c2c412a35300d0a2447504747412c3132303030302e30302c302c452c302e302c302e302c3233303339342c2c2c412a35300d0a2447504747412c3132303030302e30302c343830372e303330352c2c30392c31322c2c2c32342c2c2c2c2c322e352c312e332c322e352a33390d0a2447504747412c313230cbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcbcb3030322e30302c2c2c2c2c302c30302c2c2c4d2c2c4d2c2c2a34390d0a67617262616765206c696e650d0a2447504747412c3132303030332e30302c343830372e303339302c532c30313133312e303031302c572c322c31322c302e372c2d352e352c4d2c34362e392c4d2c2c2a30300d0a",
     );
-    vgps::fuzzing::nmea(&data);
+    vgps_fuzz_bodies::nmea(&data);
     let (records, stats) = vgps::drive::nmea::read_nmea(&String::from_utf8_lossy(&data));
     assert!(stats.invalid + stats.bad_checksum >= 1, "{stats:?}");
     assert!(records.iter().all(|r| r.time_s.is_finite()));
@@ -49,8 +49,8 @@ fn p3p_cosines_subdivision_is_bounded() {
     let data = hex(
         "7411001818181818181818181818181856000000000018181818000000001818181818186200000000000000181800000000000000000000001818181818181818000de5fe0000a8fc",
     );
-    vgps::fuzzing::p3p_law_of_cosines(&data);
-    vgps::fuzzing::p3p_lambda_twist(&data);
+    vgps_fuzz_bodies::p3p_law_of_cosines(&data);
+    vgps_fuzz_bodies::p3p_lambda_twist(&data);
 }
 
 /// `nclt_table` crash-56586e1e (out of memory): a distortion-table header claiming a
@@ -62,7 +62,7 @@ fn nclt_table_with_a_huge_header_is_refused_before_allocating() {
     let data = hex(
         "0ac95858585858585858585858585886005858585858585858363636366a36363636363636363636363636363636363636363636140000000000000036363636363658585858585858585858585858750b000000000000585858585858ce0a58ce0a3231",
     );
-    vgps::fuzzing::nclt_table(&data);
+    vgps_fuzz_bodies::nclt_table(&data);
     let text = "4000 1000000\n0 0 0.5 0.5\n";
     let e = vgps::calibration::formats::nclt::table_from_str(
         text,
@@ -84,7 +84,7 @@ fn p3p_cosines_second_timeout_is_bounded() {
     let data = hex(
         "7411001818181818181818181818181800000000000018181818181818180818181818181818b601040100010000181818ffffffffffffff00000004ff1818181818181800000000181818181818183b000000000000000000e5fe0000a8fc",
     );
-    vgps::fuzzing::p3p_law_of_cosines(&data);
+    vgps_fuzz_bodies::p3p_law_of_cosines(&data);
 }
 
 /// `attitude` crash-24861c7b: directions with components near 1e-160 (their squares
@@ -95,7 +95,7 @@ fn triad_of_tiny_directions_is_a_rotation() {
     let data = hex(
         "3d000000e2e2e2e2e20064861e2413e9d7a8d22e5e010101010101ffff0101010101010101010101010101ffff010101010101ffffff01e2010101015959ca2f1fd18059ca2f59fe6142ff21af241ed2e92e5e015b0000000000000001010101010101010101010101010101010127010101010101f94ea12969fcc1",
     );
-    vgps::fuzzing::attitude(&data);
+    vgps_fuzz_bodies::attitude(&data);
     let tiny = nalgebra::Vector3::new(1e-160, 1e-160, -1e-160);
     let u = vgps::geometry::try_unit(&tiny).expect("a direction");
     assert!((u.norm() - 1.0).abs() < 1e-15, "|u| = {}", u.norm());
@@ -114,7 +114,7 @@ fn matcher_solves_are_bounded_by_max_hypotheses() {
     let data = hex(
         "cdcb13ee013f0000000900004d4d4d4d4d3f4d4d4d4d4d4d4d4d4d4d4d41000000000000004d4d4d4d4d4d4d4d4d4d4d444d4d4d4d4d4d4d4d0500000000000000e0e0e0e0e04d4d4d4d4d4d4d4d4d4d4d0100f7004d4d4d4d4d4d4d4d4d4a4d4d4d4d4d4d4d4dcd4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d0d4d1100000075000000004d4d4a4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4dfeffffffffffffff4d4d4d4d5b4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d0000f948b68d36bfd3b4533de6f7f502621170ac00000008e0ad06294d4d4d4d0100f7004d4db74d4d4d4d4d4d4a4d4d4d4d4d4d4d4dcd4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d0d4d11000000000000004d4d4a4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d090909090909090909ae09090909090909090909094d4d4dffffffffffffff054d4d4d090909090109090909ae0909090909090909099e094d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d63ffffff69ffffffffffffffffffffff63636363636363636363",
     );
-    vgps::fuzzing::matcher(&data);
+    vgps_fuzz_bodies::matcher(&data);
 }
 
 /// `matcher` timeout-5b924912: two landmarks and a 34 km × 9 km area of 28 m cells (377,000
@@ -128,7 +128,7 @@ fn matcher_with_no_landmarks_within_reach_returns_at_once() {
     let data = hex(
         "cdcb13ee010000000081916eb84b7b00004d4d4d4d4d4d4d4d4d4d4d4d41000000000000004d4d4d4d4d4d4d4d4d4d4d444d4d00000000000000040000e0e00000e0e0e0e0e04d4d4d4d4d4d4d4d4d4d4d010000004d4d4d4d4d4d4d4d4d4a4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4dd3d3d3d3d3d3d3d3d3d3d3d3d3d3d3d3d3d3060606060606280100001c1c1c1c1c1b1c1c1cc0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0c0e0c0c0c0c0c0c0c0c0c4c0c0c0c0c0c0c0c0c0c0c01c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1ce4e3e3e3e3e3e3e31c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c1c00000000060606060606ae0606060606060000064d4d4d4d",
     );
-    vgps::fuzzing::matcher(&data);
+    vgps_fuzz_bodies::matcher(&data);
     use nalgebra::Vector3;
     use vgps::matcher::{MatchOptions, MatchStatus, SearchArea};
     use vgps::synthetic::matcher::landmark_db;
@@ -163,7 +163,7 @@ fn matcher_area_of_a_million_cells_is_refused() {
     let data = hex(
         "cdcb25ee0100000000ffffff060900004d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d41000000000000004d4d4d4d4d4d4d4d4d4d4d444d4d4d4d4d4d4d4d0500000000000000e0e0e0e0e04d4d4d4d4d4d4d4d4d4d4d0100f7004d4d4d4d4d4d4d4d4d4a4d4d4d4d4d4d4d4dcd4d4d4d4d4d4d4d4d4d4d4db3b2b2ba4d4d4d4d4d4d004d4d4d4d5d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d5d4d0d4d1100000075000000004d4d4a4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4dfeffffffffffffff4d4d4d4d5b4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d41000000000000004d4d4d4d4d4d4d4d4d4d4d444d4d4d4d4d4d4d4d000008e0ad06294d4d4d4d0100f7004d4d4d4d4d4d4d4d4d4a4d4d4d4d4d4d4d4dcd4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4daa4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d0d4d1100000000004d4d00004a4d234d4d4d4d4d4d494d4d4d4d4d4d4d4d4d090909090909090909ae09090909090909090909094d4d4dffffffffffffff054d4d4d0909d9d94d4d0909e0e0e03f4d4d4d4d4d4d4d4d4d4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c4c09090909ffffffffffffffffff63636363636363636363",
     );
-    vgps::fuzzing::matcher(&data);
+    vgps_fuzz_bodies::matcher(&data);
     use nalgebra::Vector3;
     use vgps::matcher::{MatchError, MatchOptions, SearchArea};
     use vgps::synthetic::matcher::landmark_db;
@@ -202,6 +202,6 @@ fn matcher_target_skips_areas_of_many_cells() {
     let data = hex(
         "cdcb13ee013f0000000900004d4d4d4d4d3f4d4d4d4d4d4d4d4d4d4d4d41000000000000004d4d4d4d4d4d4d4d4d4d4d444d4d4d4d4d4d4d4d0500000000000000e0e0e0e0e04d4d4d4d4d4d4d4d4d4d4d0100f7004d4d4d4d4d4d4d4d4d4a4d4d4d4d4d4d4d4dcd4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d0d4d1100000075000000004d4d4a4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4dfeffffffffffffff4d4d4d4d5b4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d0000f948b68d36bfd3b4533de6f7f502621170ac00000008e0ad06294d4d4d4d0100f7004d4db74d4d4d4d4d4d4a4d4d4d4d4d4d4d4dcd4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d0d4d11000000000000004d4d4a4d4d4d4d4d4d4d4d4d4d4d0d4d4d4d4d4d4d090909090909090909ae09090909090909090909094d4d4dffffffffffffff054d4d4d090909090109090909ae0909090909090909099e094d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d0d4d1100000075000000004d4d4a4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4dfeffffffffffffff4d4d4d4d5b4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d0000f948b68d36bfd3b4533de6f7f502621170ac00000008e0ad06294d4d4d4d0100f7004d4db74d4d4d4d4d4d4a4d4d4d4d4d4d4d4dcd4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d4d0d4d110000000000004d4d63ffffff69ffffffffffffffffffffff63636363636363636363",
     );
-    vgps::fuzzing::matcher(&data);
-    const { assert!(vgps::fuzzing::MATCHER_MAX_FUZZ_CELLS < vgps::matcher::MAX_CELLS as f64) };
+    vgps_fuzz_bodies::matcher(&data);
+    const { assert!(vgps_fuzz_bodies::MATCHER_MAX_FUZZ_CELLS < vgps::matcher::MAX_CELLS as f64) };
 }

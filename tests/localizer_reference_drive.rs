@@ -44,7 +44,7 @@ fn replay(seed: u64, min_link_probability: f64) -> (usize, usize, f64, u64, f64)
     let (mut ok, mut inside, mut worst, mut worst_frame) = (0, 0, 0.0f64, 0);
     for f in &drive.frames {
         let detections: Vec<_> = f.detections.iter().map(|d| d.detection.clone()).collect();
-        let gnss = vgps::cli::replay::gnss_at(&drive.gnss, f.time_s)
+        let gnss = vgps::drive::gnss::gnss_at(&drive.gnss, f.time_s)
             .map(|position| GnssPosition { position });
         let fix = localizer.process(&Frame::from_detections(f.time_s, &detections, &map, gnss));
         if fix.status != LocalizerStatus::Ok {

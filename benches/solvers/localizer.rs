@@ -5,7 +5,7 @@
 //! frames per second.
 use criterion::{BatchSize, Criterion, Throughput};
 use std::sync::Arc;
-use vgps::cli::replay::gnss_at;
+use vgps::drive::gnss::gnss_at;
 use vgps::localizer::{Frame, GnssPosition, LandmarkMap, Localizer, LocalizerOptions};
 use vgps::simulate::{Preset, Scenario, simulate};
 

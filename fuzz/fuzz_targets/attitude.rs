@@ -1,5 +1,5 @@
 #![no_main]
-//! Fuzz target `attitude`: the body is [`vgps::fuzzing::attitude`].
+//! Fuzz target `attitude`: the body is [`vgps_fuzz_bodies::attitude`].
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| vgps::fuzzing::attitude(data));
+fuzz_target!(|data: &[u8]| vgps_fuzz_bodies::attitude(data));

@@ -1,5 +1,5 @@
 #![no_main]
-//! Fuzz target `drive_json`: the body is [`vgps::fuzzing::drive_json`].
+//! Fuzz target `drive_json`: the body is [`vgps_fuzz_bodies::drive_json`].
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| vgps::fuzzing::drive_json(data));
+fuzz_target!(|data: &[u8]| vgps_fuzz_bodies::drive_json(data));

@@ -1,5 +1,5 @@
 #![no_main]
-//! Fuzz target `gpx`: the body is [`vgps::fuzzing::gpx`].
+//! Fuzz target `gpx`: the body is [`vgps_fuzz_bodies::gpx`].
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| vgps::fuzzing::gpx(data));
+fuzz_target!(|data: &[u8]| vgps_fuzz_bodies::gpx(data));

@@ -1,5 +1,5 @@
 #![no_main]
-//! Fuzz target `ladybug_ini`: the body is [`vgps::fuzzing::ladybug_ini`].
+//! Fuzz target `ladybug_ini`: the body is [`vgps_fuzz_bodies::ladybug_ini`].
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| vgps::fuzzing::ladybug_ini(data));
+fuzz_target!(|data: &[u8]| vgps_fuzz_bodies::ladybug_ini(data));

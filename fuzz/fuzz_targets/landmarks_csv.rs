@@ -1,5 +1,5 @@
 #![no_main]
-//! Fuzz target `landmarks_csv`: the body is [`vgps::fuzzing::landmarks_csv`].
+//! Fuzz target `landmarks_csv`: the body is [`vgps_fuzz_bodies::landmarks_csv`].
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| vgps::fuzzing::landmarks_csv(data));
+fuzz_target!(|data: &[u8]| vgps_fuzz_bodies::landmarks_csv(data));

@@ -1,5 +1,5 @@
 #![no_main]
-//! Fuzz target `matcher`: the body is [`vgps::fuzzing::matcher`].
+//! Fuzz target `matcher`: the body is [`vgps_fuzz_bodies::matcher`].
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| vgps::fuzzing::matcher(data));
+fuzz_target!(|data: &[u8]| vgps_fuzz_bodies::matcher(data));

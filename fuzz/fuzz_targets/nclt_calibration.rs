@@ -1,5 +1,5 @@
 #![no_main]
-//! Fuzz target `nclt_calibration`: the body is [`vgps::fuzzing::nclt_calibration`].
+//! Fuzz target `nclt_calibration`: the body is [`vgps_fuzz_bodies::nclt_calibration`].
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| vgps::fuzzing::nclt_calibration(data));
+fuzz_target!(|data: &[u8]| vgps_fuzz_bodies::nclt_calibration(data));

@@ -1,5 +1,5 @@
 #![no_main]
-//! Fuzz target `nclt_table`: the body is [`vgps::fuzzing::nclt_table`].
+//! Fuzz target `nclt_table`: the body is [`vgps_fuzz_bodies::nclt_table`].
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| vgps::fuzzing::nclt_table(data));
+fuzz_target!(|data: &[u8]| vgps_fuzz_bodies::nclt_table(data));

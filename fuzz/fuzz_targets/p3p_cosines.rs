@@ -1,5 +1,5 @@
 #![no_main]
-//! Fuzz target `p3p_cosines`: the body is [`vgps::fuzzing::p3p_law_of_cosines`].
+//! Fuzz target `p3p_cosines`: the body is [`vgps_fuzz_bodies::p3p_law_of_cosines`].
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| vgps::fuzzing::p3p_law_of_cosines(data));
+fuzz_target!(|data: &[u8]| vgps_fuzz_bodies::p3p_law_of_cosines(data));

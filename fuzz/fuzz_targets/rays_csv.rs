@@ -1,5 +1,5 @@
 #![no_main]
-//! Fuzz target `rays_csv`: the body is [`vgps::fuzzing::rays_csv`].
+//! Fuzz target `rays_csv`: the body is [`vgps_fuzz_bodies::rays_csv`].
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| vgps::fuzzing::rays_csv(data));
+fuzz_target!(|data: &[u8]| vgps_fuzz_bodies::rays_csv(data));

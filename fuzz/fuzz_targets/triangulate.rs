@@ -1,5 +1,5 @@
 #![no_main]
-//! Fuzz target `triangulate`: the body is [`vgps::fuzzing::triangulate`].
+//! Fuzz target `triangulate`: the body is [`vgps_fuzz_bodies::triangulate`].
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| vgps::fuzzing::triangulate(data));
+fuzz_target!(|data: &[u8]| vgps_fuzz_bodies::triangulate(data));

@@ -1,9 +1,9 @@
 //! The command-line grammar (clap derive) and its one-time validation into settings.
 
 use super::CliError;
-use crate::geo::Geodetic;
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
+use vgps_geometry::geo::Geodetic;
 
 /// Default standard deviation of a bearing per tangent axis, degrees: about one pixel of a
 /// Ladybug-class camera (1.7 mrad, the figure of the Visual GPS proposal).
@@ -119,10 +119,10 @@ fn parse_prior(text: &str) -> Result<PriorArg, String> {
             .ok_or_else(|| format!("{name} `{part}` is not a finite number"))?;
     }
     let [lat, lon, alt, radius_m] = values;
-    if lat.abs() > crate::io::MAX_ABS_LAT_DEG {
+    if lat.abs() > vgps_io::MAX_ABS_LAT_DEG {
         return Err(format!("LAT {lat} is outside [-90, 90] degrees"));
     }
-    if lon.abs() > crate::io::MAX_ABS_LON_DEG {
+    if lon.abs() > vgps_io::MAX_ABS_LON_DEG {
         return Err(format!("LON {lon} is outside [-180, 180] degrees"));
     }
     if radius_m <= 0.0 {

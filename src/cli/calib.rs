@@ -9,13 +9,13 @@
 //! Every error (unreadable or invalid file, bad input line) is printed on stderr naming the
 //! file and line, and exits with code 2.
 
-use crate::calibration::formats::{self, Format, LoadError, to_lut_rig};
-use crate::calibration::{Camera, CameraModel, Pixel, Rig};
-use crate::geometry::{angle_between, try_unit};
 use nalgebra::{Matrix3, Vector2, Vector3};
 use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use vgps_camera::calibration::formats::{self, Format, LoadError, to_lut_rig};
+use vgps_camera::calibration::{Camera, CameraModel, Pixel, Rig};
+use vgps_geometry::geometry::{angle_between, try_unit};
 
 /// Exit code of every failure (bad input, invalid calibration, failed check).
 pub const EXIT_FAILURE: u8 = 2;
@@ -383,7 +383,7 @@ fn probe_pixels(model: &Camera) -> Vec<Pixel> {
 
 /// The smallest `((b10 − b00) × (b01 − b00)) · b00` over the cells of a LUT (> 0 when every
 /// cell keeps the image's orientation).
-fn lut_min_orientation(lut: &crate::calibration::Lut) -> f64 {
+fn lut_min_orientation(lut: &vgps_camera::calibration::Lut) -> f64 {
     let (cols, rows) = lut.grid_size();
     let b = &lut.params().bearings;
     let v = |i: usize, j: usize| {
@@ -410,10 +410,10 @@ fn check(path: &Path, rig: &Rig) -> Result<(), String> {
             .abs()
             .max()
             .max((r.determinant() - 1.0).abs());
-        let ok = dev <= crate::calibration::ROTATION_TOLERANCE;
+        let ok = dev <= vgps_camera::calibration::ROTATION_TOLERANCE;
         text += &format!(
             "  rotation orthonormality: max |RᵀR − I|, |det R − 1| = {dev:.2e} (limit {:.0e}) {}\n",
-            crate::calibration::ROTATION_TOLERANCE,
+            vgps_camera::calibration::ROTATION_TOLERANCE,
             if ok { "ok" } else { "FAIL" }
         );
         if !ok {

@@ -14,9 +14,9 @@
 
 use super::CliError;
 use super::replay::{OutputFormat, ReplayArgs};
-use crate::simulate::{Preset, Scenario, simulate};
 use std::io::Write;
 use std::path::PathBuf;
+use vgps_sim::simulate::{Preset, Scenario, simulate};
 
 /// Default output directory of the demo (relative to the working directory).
 pub const DEFAULT_DEMO_DIR: &str = "vgps-demo";
@@ -94,10 +94,10 @@ fn run_images(args: &DemoArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resu
         simulate(&scenario).map_err(|e| CliError::Internal(format!("the night drive: {e}")))?;
     drive.write(&night).map_err(drive_write_error)?;
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let images = crate::simulate::images::write_images(
+    let images = vgps_sim::simulate::images::write_images(
         &drive,
         &night,
-        &crate::simulate::images::ImageOptions::default(),
+        &vgps_sim::simulate::images::ImageOptions::default(),
         threads,
         &|_| {},
     )
@@ -135,7 +135,7 @@ fn replay_args(
         quiet: false,
         format,
         strict: true,
-        pixel_sigma_px: crate::localizer::DEFAULT_PIXEL_SIGMA_PX,
+        pixel_sigma_px: vgps_core::localizer::DEFAULT_PIXEL_SIGMA_PX,
         no_surrogates: false,
         no_gnss_prior: false,
         from_images,
@@ -144,6 +144,6 @@ fn replay_args(
 }
 
 /// A drive that cannot be written is an output error (exit code 1).
-fn drive_write_error(e: crate::drive::DriveError) -> CliError {
+fn drive_write_error(e: vgps_replay::drive::DriveError) -> CliError {
     CliError::Output(std::io::Error::other(e.to_string()))
 }

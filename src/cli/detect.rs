@@ -12,12 +12,12 @@
 //! the file lists the frames in the drive's order whatever the number of threads.
 
 use super::CliError;
-use crate::drive::{Detection, Drive, Strictness, detections_to_csv, write_text};
 use crate::imaging::{FrameImageResult, ImageProblemKind, LampDetector, detect_frame_images};
 use std::collections::BTreeMap;
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicUsize, Ordering};
+use vgps_replay::drive::{Detection, Drive, Strictness, detections_to_csv, write_text};
 
 /// The default output file name when the drive has no detections file yet.
 pub const DEFAULT_OUT_NAME: &str = "detections.csv";

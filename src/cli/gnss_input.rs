@@ -2,10 +2,10 @@
 //! a drive taken from another file (shared by `vgps replay` and `vgps map`).
 
 use super::CliError;
-use crate::drive::Drive;
-use crate::drive::gnss::{GnssFormat, read_gnss_file};
 use std::io::Write;
 use std::path::PathBuf;
+use vgps_replay::drive::Drive;
+use vgps_replay::drive::gnss::{GnssFormat, read_gnss_file};
 
 fn parse_finite(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {

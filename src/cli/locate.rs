@@ -1,21 +1,21 @@
 //! `vgps locate`: one fix per frame, written as JSON lines.
 
 use super::{CliError, LocateSettings, PriorArg};
-use crate::attitude::HeadingPitchRoll;
-use crate::calibration::{Pixel, Rig};
-use crate::fix::{Fix, FixOptions, FixStatus, Prior, compute_fix};
-use crate::geo::{Geodetic, LocalFrame};
-use crate::geometry::Ray;
-use crate::io::{InputError, Landmark, Measurement, Observation};
-use crate::matcher::{
-    DbLandmark, Detection, LandmarkDb, MatchError, MatchOptions, MatchStatus, SearchArea,
-    match_detections,
-};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
 use std::io::Write;
 use std::path::Path;
+use vgps_camera::calibration::{Pixel, Rig};
+use vgps_core::fix::{Fix, FixOptions, FixStatus, Prior, compute_fix};
+use vgps_core::matcher::{
+    DbLandmark, Detection, LandmarkDb, MatchError, MatchOptions, MatchStatus, SearchArea,
+    match_detections,
+};
+use vgps_geometry::attitude::HeadingPitchRoll;
+use vgps_geometry::geo::{Geodetic, LocalFrame};
+use vgps_geometry::geometry::Ray;
+use vgps_io::{InputError, Landmark, Measurement, Observation};
 
 /// Status of a frame whose observations carry no landmark ids when neither `--prior` nor
 /// `--region` says where to search.
@@ -118,12 +118,12 @@ pub fn run(
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> Result<(), CliError> {
-    let landmarks = crate::io::read_landmarks(&settings.landmarks)?;
-    let observations = crate::io::read_observations(&settings.observations)?;
+    let landmarks = vgps_io::read_landmarks(&settings.landmarks)?;
+    let observations = vgps_io::read_observations(&settings.observations)?;
     let rig = match &settings.calibration {
         None => None,
         Some(path) => Some(
-            crate::calibration::formats::load(path, None, None)
+            vgps_camera::calibration::formats::load(path, None, None)
                 .map_err(|e| CliError::Calibration(format!("{}: {e}", path.display())))?,
         ),
     };
@@ -206,7 +206,7 @@ pub fn locate(
             InputError::field(
                 landmarks_path,
                 l.line,
-                crate::io::geodetic_column(&e),
+                vgps_io::geodetic_column(&e),
                 e.to_string(),
             )
         })?;
@@ -403,7 +403,7 @@ fn report(number: u64, rows: &[&Observation], fix: &Fix, local: &LocalFrame) -> 
 fn fix_report(
     number: u64,
     local: &LocalFrame,
-    world_from_rig: &crate::geometry::Pose,
+    world_from_rig: &vgps_geometry::geometry::Pose,
     covariance: &nalgebra::Matrix6<f64>,
     rms_residual_rad: f64,
     inliers: usize,

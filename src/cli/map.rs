@@ -2,10 +2,10 @@
 //!
 //! The satellite GPS of a drive (GGA/RMC position, HDT heading) gives every camera frame a
 //! level pose with covariance; the detections become rays through the rig calibration; the
-//! mapper associates them and refines every landmark ([`crate::mapping::survey`]); the
+//! mapper associates them and refines every landmark ([`vgps_core::mapping::survey`]); the
 //! inventory is written as a landmarks.csv that `vgps locate --landmarks` and the localizer
 //! read. `--gps-offset auto` first estimates the GPS latency
-//! ([`crate::mapping::calibrate_gps_offset`]).
+//! ([`vgps_core::mapping::calibrate_gps_offset`]).
 //!
 //! # Frames
 //! The survey works in the local ENU frame at the **first GNSS fix** of the drive (the
@@ -13,28 +13,28 @@
 //! file is in WGS84, so the frame is only internal.
 //!
 //! # Gaps
-//! [`crate::mapping::gps_pose_at`] interpolates linearly between any two samples; across an
+//! [`vgps_core::mapping::gps_pose_at`] interpolates linearly between any two samples; across an
 //! outage that would invent poses. A frame is used only when the GPS track covers
 //! `[t − m, t + m]` (`m` = the largest offset that may be applied) with epochs at most
 //! [`MAX_GNSS_GAP_S`] apart.
 
 use super::CliError;
 use super::replay::OutputFormat;
-use crate::calibration::{Pixel, Rig};
-use crate::drive::{Drive, GnssRecord, Strictness};
-use crate::geo::LocalFrame;
-use crate::geometry::Ray;
-use crate::mapping::{
-    CameraFrame, GpsSample, MAX_GPS_OFFSET_S, MIN_LANDMARK_RAYS, MapRay, MappedLandmark,
-    OffsetSearch, RigObservation, SurveyOptions, calibrate_gps_offset, gps_pose_at,
-    refine_landmark, survey, write_landmarks_csv,
-};
 use nalgebra::Vector3;
 use serde::Serialize;
 use std::collections::HashMap;
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
+use vgps_camera::calibration::{Pixel, Rig};
+use vgps_core::mapping::{
+    CameraFrame, GpsSample, MAX_GPS_OFFSET_S, MIN_LANDMARK_RAYS, MapRay, MappedLandmark,
+    OffsetSearch, RigObservation, SurveyOptions, calibrate_gps_offset, gps_pose_at,
+    refine_landmark, survey, write_landmarks_csv,
+};
+use vgps_geometry::geo::LocalFrame;
+use vgps_geometry::geometry::Ray;
+use vgps_replay::drive::{Drive, GnssRecord, Strictness};
 
 /// Default horizontal σ of a GNSS fix per axis (metres). The white part of a consumer
 /// receiver's error (the simulator's CEP 2 m receiver: 22 % of 1.7² m²  ⇒ ≈ 0.8 m); the slow
@@ -58,8 +58,8 @@ pub const CONSISTENCY_Z: f64 = 3.090_232_306_167_813;
 pub const DEFAULT_MIN_COVERAGE: f64 = 0.5;
 /// Default of `--min-obs`: tracks of 3–4 rays are mostly chance alignments of transient
 /// lights (measured on the short simulated drive); the surrogate criterion
-/// ([`crate::mapping::MIN_SURROGATE_RAYS`]).
-pub const DEFAULT_MIN_OBS: usize = crate::mapping::MIN_SURROGATE_RAYS;
+/// ([`vgps_core::mapping::MIN_SURROGATE_RAYS`]).
+pub const DEFAULT_MIN_OBS: usize = vgps_core::mapping::MIN_SURROGATE_RAYS;
 /// Default of `--smooth-s` (seconds): ±1 s of a 5 Hz receiver is 11 fixes, which a
 /// quadratic fits to within the vehicle's jerk (≈ 0.1 m at 1.5 m/s³) while dividing the white
 /// noise's σ by ≈ 2.
@@ -120,7 +120,7 @@ pub struct MapArgs {
     #[arg(long, value_name = "auto|SECONDS", default_value = "0", value_parser = parse_offset, allow_hyphen_values = true)]
     pub gps_offset: GpsOffset,
     /// Pixel σ of a detection (pixels), turned into an angle by the camera model's Jacobian.
-    #[arg(long, value_name = "S", default_value_t = crate::localizer::DEFAULT_PIXEL_SIGMA_PX, value_parser = parse_positive)]
+    #[arg(long, value_name = "S", default_value_t = vgps_core::localizer::DEFAULT_PIXEL_SIGMA_PX, value_parser = parse_positive)]
     pub pixel_sigma_px: f64,
     /// Horizontal σ of a GNSS fix per axis (metres); vertical = 1.5 ×.
     #[arg(long, value_name = "M", default_value_t = DEFAULT_GNSS_SIGMA_M, value_parser = parse_positive)]
@@ -320,7 +320,7 @@ pub fn run(args: &MapArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<(
     let mut options = SurveyOptions::default();
     options.mapper.min_landmark_rays = args.min_obs;
     let speed = median_speed(&gps);
-    let mapping_error = |e: crate::mapping::MappingError| {
+    let mapping_error = |e: vgps_core::mapping::MappingError| {
         CliError::Calibration(format!("{}: {e}", args.drive.display()))
     };
     let gps_offset = match args.gps_offset {
@@ -399,7 +399,7 @@ pub fn run(args: &MapArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<(
 }
 
 /// `(χ², dof)` of one landmark's rays at its refined estimate (residual perpendicular to
-/// each ray over its covariance, [`crate::mapping::ray_residual_covariance`]).
+/// each ray over its covariance, [`vgps_core::mapping::ray_residual_covariance`]).
 fn landmark_chi2(
     gps: &[GpsSample],
     frames: &[CameraFrame],
@@ -420,7 +420,7 @@ fn landmark_chi2(
     let est = refine_landmark(&rays).ok()?;
     let mut chi2 = 0.0;
     for r in &rays {
-        chi2 += crate::mapping::ray_chi2(r, &est.point)?;
+        chi2 += vgps_core::mapping::ray_chi2(r, &est.point)?;
     }
     let dof = (2 * rays.len()).checked_sub(3)?;
     chi2.is_finite().then_some((chi2, dof))
@@ -501,7 +501,7 @@ fn smooth_track(gps: &[GpsSample], half_window_s: f64) -> Vec<GpsSample> {
         let coef = inv * atb;
         let position = coef.row(0).transpose();
         let leverage = inv[(0, 0)];
-        if !(crate::geometry::is_finite(&position) && leverage > 0.0 && leverage <= 1.0) {
+        if !(vgps_geometry::geometry::is_finite(&position) && leverage > 0.0 && leverage <= 1.0) {
             continue;
         }
         o.position_enu = position;

@@ -21,11 +21,11 @@ pub mod triangulate;
 
 pub use args::{Cli, LocateSettings, PriorArg, Settings, TriangulateSettings};
 
-use crate::io::InputError;
 use clap::Parser;
 use std::ffi::OsString;
 use std::io::Write;
 use std::process::ExitCode;
+use vgps_io::InputError;
 
 /// Exit code of a usage error or an invalid input.
 pub const EXIT_INPUT: u8 = 2;

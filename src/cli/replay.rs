@@ -10,25 +10,22 @@
 //! runs, on one thread.
 
 use super::CliError;
-use crate::drive::{Drive, FrameStatus, GnssRecord, Strictness};
-use crate::geo::Geodetic;
-use crate::imaging::LampDetector;
-use crate::localizer::{
-    Frame, GnssPosition, LandmarkMap, Localizer, LocalizerFix, LocalizerOptions, LocalizerStatus,
-};
-use crate::report::{DriveInfo, FrameRecord, Report, Truth, VisualFix, summary_table};
 use nalgebra::Matrix2;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use vgps_camera::imaging::LampDetector;
+use vgps_core::localizer::{
+    Frame, GnssPosition, LandmarkMap, Localizer, LocalizerFix, LocalizerOptions, LocalizerStatus,
+};
+use vgps_replay::drive::gnss::gnss_at;
+use vgps_replay::drive::{Drive, FrameStatus, Strictness};
+use vgps_replay::report::{DriveInfo, FrameRecord, Report, Truth, VisualFix, summary_table};
 
 /// The status of a frame none of whose images could be used.
 pub const BAD_IMAGE_STATUS: &str = "bad_image";
 /// Frames decoded and detected together before they are localized in order.
 pub const BATCH_FRAMES: usize = 64;
-/// Satellite GPS is interpolated between two epochs with a fix at most this far apart
-/// (seconds); a longer gap is a gap.
-pub const MAX_GNSS_INTERPOLATION_GAP_S: f64 = 1.0;
 
 /// Output formats of the summary on stdout.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -61,7 +58,7 @@ pub struct ReplayArgs {
     #[arg(long)]
     pub strict: bool,
     /// Pixel σ of a detection (pixels).
-    #[arg(long, default_value_t = crate::localizer::DEFAULT_PIXEL_SIGMA_PX)]
+    #[arg(long, default_value_t = vgps_core::localizer::DEFAULT_PIXEL_SIGMA_PX)]
     pub pixel_sigma_px: f64,
     /// Do not map secondary landmarks or use them as surrogates.
     #[arg(long)]
@@ -82,7 +79,7 @@ pub struct ReplayArgs {
 /// borrowed from the drive).
 enum FrameDetections<'a> {
     Ok {
-        detections: std::borrow::Cow<'a, [crate::drive::Detection]>,
+        detections: std::borrow::Cow<'a, [vgps_replay::drive::Detection]>,
         unusable_images: Option<u32>,
         problems: Option<String>,
     },
@@ -93,7 +90,7 @@ enum FrameDetections<'a> {
 }
 
 impl<'a> FrameDetections<'a> {
-    fn from_file(detections: &'a [crate::drive::Detection]) -> Self {
+    fn from_file(detections: &'a [vgps_replay::drive::Detection]) -> Self {
         Self::Ok {
             detections: std::borrow::Cow::Borrowed(detections),
             unusable_images: None,
@@ -196,7 +193,7 @@ pub fn run(args: &ReplayArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resul
             let gnss = gnss_at(drive.gnss(), f.time_s);
             let truth = drive.truth_of(f.frame).map(|t| Truth {
                 geodetic: t.position,
-                heading_deg: crate::simulate::heading_deg(&t.enu_from_rig),
+                heading_deg: vgps_sim::simulate::heading_deg(&t.enu_from_rig),
             });
             let (status, visual, unusable_images) = match d {
                 FrameDetections::Bad {
@@ -254,7 +251,7 @@ pub fn run(args: &ReplayArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resul
         name: drive_name(&args.drive),
         origin: map.frame().origin(),
     };
-    let (report, _files) = crate::report::write_outputs(&out_dir, &info, &records)
+    let (report, _files) = vgps_replay::report::write_outputs(&out_dir, &info, &records)
         .map_err(|e| CliError::Output(std::io::Error::other(e.to_string())))?;
     write_summary(&report, args, &out_dir, out)
 }
@@ -311,39 +308,10 @@ fn visual_of(fix: &LocalizerFix) -> Option<VisualFix> {
     })
 }
 
-/// The satellite position at `time_s`, interpolated between the two epochs with a fix
-/// around it when they are at most [`MAX_GNSS_INTERPOLATION_GAP_S`] apart.
-pub fn gnss_at(records: &[GnssRecord], time_s: f64) -> Option<Geodetic> {
-    let k = records.partition_point(|r| r.time_s <= time_s);
-    let before = records.get(k.checked_sub(1)?)?;
-    let a = before.fix?;
-    if (time_s - before.time_s).abs() < 1e-9 {
-        return Some(a.position);
-    }
-    let after = records.get(k)?;
-    let b = after.fix?;
-    let gap = after.time_s - before.time_s;
-    if !(gap > 0.0 && gap <= MAX_GNSS_INTERPOLATION_GAP_S) {
-        return None;
-    }
-    let w = (time_s - before.time_s) / gap;
-    // Interpolating in degrees over < 1 s of travel (tens of metres) is exact to well below
-    // a millimetre; longitude wrap-around is handled by interpolating the difference.
-    let dlon = (b.position.lon_deg - a.position.lon_deg + 540.0).rem_euclid(360.0) - 180.0;
-    let lon = a.position.lon_deg + w * dlon;
-    let lon = (lon + 540.0).rem_euclid(360.0) - 180.0;
-    Geodetic::try_new(
-        a.position.lat_deg + w * (b.position.lat_deg - a.position.lat_deg),
-        lon,
-        a.position.alt_m + w * (b.position.alt_m - a.position.alt_m),
-    )
-    .ok()
-}
-
 /// Decodes and detects the images of a batch of frames on `threads` threads.
 fn detect_batch(
     drive: &Drive,
-    batch: &[crate::drive::Frame],
+    batch: &[vgps_replay::drive::Frame],
     threads: usize,
 ) -> Vec<FrameDetections<'static>> {
     let detector = LampDetector::default();
@@ -382,7 +350,7 @@ fn detect_batch(
 /// Decodes and detects one frame's images.
 fn detect_frame(
     drive: &Drive,
-    frame: &crate::drive::Frame,
+    frame: &vgps_replay::drive::Frame,
     detector: &LampDetector,
 ) -> FrameDetections<'static> {
     if frame.images.iter().all(Option::is_none) {
@@ -391,7 +359,8 @@ fn detect_frame(
             unusable_images: Some(0),
         };
     }
-    let result = crate::imaging::detect_frame_images(drive.dir(), frame, drive.rig(), detector);
+    let result =
+        vgps_replay::frame_images::detect_frame_images(drive.dir(), frame, drive.rig(), detector);
     let unusable_images = Some(u32::try_from(result.problems.len()).unwrap_or(u32::MAX));
     if result.is_unusable() {
         FrameDetections::Bad {

@@ -1,10 +1,10 @@
 //! `vgps simulate`: write a simulated drive directory (see `docs/simulate.md`).
 
 use super::CliError;
-use crate::geo::Geodetic;
-use crate::simulate::{Preset, Scenario, simulate};
 use std::io::Write;
 use std::path::PathBuf;
+use vgps_geometry::geo::Geodetic;
+use vgps_sim::simulate::{Preset, Scenario, simulate};
 
 /// The presets on the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -87,7 +87,7 @@ pub fn run(args: &SimulateArgs, out: &mut dyn Write) -> Result<(), CliError> {
         scenario.origin = o;
     }
     if let Some(path) = &args.calibration {
-        scenario.rig = crate::calibration::load(path, None, None)
+        scenario.rig = vgps_camera::calibration::load(path, None, None)
             .map_err(|e| CliError::Calibration(e.to_string()))?;
         scenario.calibration_name = path.display().to_string();
     }
@@ -122,7 +122,9 @@ pub fn run(args: &SimulateArgs, out: &mut dyn Write) -> Result<(), CliError> {
         writeln!(
             out,
             "{}: {} images, {:.1} MB ({} lamp, {} transient, {} clutter spots)",
-            args.out.join(crate::simulate::images::IMAGES_DIR).display(),
+            args.out
+                .join(vgps_sim::simulate::images::IMAGES_DIR)
+                .display(),
             s.images,
             s.bytes as f64 / 1e6,
             s.lamps,
@@ -135,9 +137,9 @@ pub fn run(args: &SimulateArgs, out: &mut dyn Write) -> Result<(), CliError> {
 
 /// Renders and writes the images of `drive` (`--images`), with a progress bar on a terminal.
 fn write_images(
-    drive: &crate::simulate::SimulatedDrive,
+    drive: &vgps_sim::simulate::SimulatedDrive,
     args: &SimulateArgs,
-) -> Result<crate::simulate::images::ImagesSummary, CliError> {
+) -> Result<vgps_sim::simulate::images::ImagesSummary, CliError> {
     use std::io::IsTerminal;
     let threads = args
         .threads
@@ -158,10 +160,10 @@ fn write_images(
             bar.inc(n);
         }
     };
-    let result = crate::simulate::images::write_images(
+    let result = vgps_sim::simulate::images::write_images(
         drive,
         &args.out,
-        &crate::simulate::images::ImageOptions::default(),
+        &vgps_sim::simulate::images::ImageOptions::default(),
         threads,
         &progress,
     )

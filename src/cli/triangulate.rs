@@ -1,14 +1,14 @@
 //! `vgps triangulate`: landmark positions from rays, written as CSV.
 
 use super::{CliError, TriangulateSettings};
-use crate::geo::{Geodetic, LocalFrame};
-use crate::geometry::Ray;
-use crate::io::{InputError, RayRecord};
-use crate::triangulation::{RayObservation, TriangulationError, triangulate_rays};
 use nalgebra::Matrix3;
 use std::collections::HashMap;
 use std::io::Write;
 use std::path::Path;
+use vgps_geometry::geo::{Geodetic, LocalFrame};
+use vgps_geometry::geometry::Ray;
+use vgps_geometry::triangulation::{RayObservation, TriangulationError, triangulate_rays};
+use vgps_io::{InputError, RayRecord};
 
 /// The output columns of `vgps triangulate`.
 pub const COLUMNS: [&str; 12] = [
@@ -45,7 +45,7 @@ pub fn run(
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> Result<(), CliError> {
-    let rays = crate::io::read_rays(&settings.rays)?;
+    let rays = vgps_io::read_rays(&settings.rays)?;
     let results = triangulate(&rays, &settings.rays, settings)?;
     let mut writer = csv::Writer::from_writer(out);
     let csv_err = |e: csv::Error| CliError::Output(std::io::Error::other(e.to_string()));
@@ -108,7 +108,7 @@ pub fn triangulate(
     };
     let geodetic = |r: &RayRecord| {
         Geodetic::try_new(r.lat_deg, r.lon_deg, r.alt_m).map_err(|e| {
-            InputError::field(path, r.line, crate::io::geodetic_column(&e), e.to_string())
+            InputError::field(path, r.line, vgps_io::geodetic_column(&e), e.to_string())
         })
     };
     let local = LocalFrame::new(geodetic(first)?);

@@ -1,0 +1,120 @@
+//! The enum of every camera model, with static dispatch of [`CameraModel`].
+
+use super::{CameraModel, Equirectangular, KannalaBrandt, Lut, Pinhole, Pixel, TabulatedPinhole};
+use nalgebra::{Matrix2x3, Matrix3x2, Vector3};
+use serde::{Deserialize, Serialize};
+
+/// Any camera model, for storage in a rig and for serde (tagged by a `"model"` field:
+/// `"pinhole"`, `"kannala_brandt"`, `"equirectangular"`, `"lut"`, the other fields being the
+/// model's parameter struct).
+///
+/// Implements [`CameraModel`] by a `match` (no `Box<dyn>`, inlinable in hot loops).
+///
+/// # Example
+/// ```
+/// use vgps_camera::calibration::{Camera, CameraModel};
+/// let json = r#"{"model": "equirectangular", "width": 2048, "height": 1024}"#;
+/// let camera: Camera = serde_json::from_str(json).unwrap();
+/// assert_eq!(camera.image_size(), (2048, 1024));
+/// ```
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "model", rename_all = "snake_case")]
+pub enum Camera {
+    /// A pinhole camera with optional radial-tangential distortion.
+    Pinhole(Pinhole),
+    /// A Kannala-Brandt (OpenCV fisheye) camera.
+    KannalaBrandt(KannalaBrandt),
+    /// An equirectangular panorama.
+    Equirectangular(Equirectangular),
+    /// A pixel → bearing lookup table.
+    Lut(Lut),
+    /// A pinhole with tabulated (NCLT `D2U`/`U2D`) distortion, or unbounded.
+    TabulatedPinhole(TabulatedPinhole),
+}
+
+macro_rules! dispatch {
+    ($self:ident, $m:ident => $e:expr) => {
+        match $self {
+            Camera::Pinhole($m) => $e,
+            Camera::KannalaBrandt($m) => $e,
+            Camera::Equirectangular($m) => $e,
+            Camera::Lut($m) => $e,
+            Camera::TabulatedPinhole($m) => $e,
+        }
+    };
+}
+
+impl Camera {
+    /// The model's name as in its serde tag.
+    pub fn model_name(&self) -> &'static str {
+        match self {
+            Camera::Pinhole(_) => "pinhole",
+            Camera::KannalaBrandt(_) => "kannala_brandt",
+            Camera::Equirectangular(_) => "equirectangular",
+            Camera::Lut(_) => "lut",
+            Camera::TabulatedPinhole(_) => "tabulated_pinhole",
+        }
+    }
+}
+
+impl CameraModel for Camera {
+    #[inline]
+    fn image_size(&self) -> (u32, u32) {
+        dispatch!(self, m => m.image_size())
+    }
+
+    #[inline]
+    fn is_inside(&self, pixel: &Pixel) -> bool {
+        dispatch!(self, m => m.is_inside(pixel))
+    }
+
+    #[inline]
+    fn try_bearing(&self, pixel: &Pixel) -> Option<Vector3<f64>> {
+        dispatch!(self, m => m.try_bearing(pixel))
+    }
+
+    #[inline]
+    fn try_pixel(&self, bearing: &Vector3<f64>) -> Option<Pixel> {
+        dispatch!(self, m => m.try_pixel(bearing))
+    }
+
+    #[inline]
+    fn try_bearing_with_jacobian(&self, pixel: &Pixel) -> Option<(Vector3<f64>, Matrix3x2<f64>)> {
+        dispatch!(self, m => m.try_bearing_with_jacobian(pixel))
+    }
+
+    #[inline]
+    fn try_pixel_with_jacobian(&self, bearing: &Vector3<f64>) -> Option<(Pixel, Matrix2x3<f64>)> {
+        dispatch!(self, m => m.try_pixel_with_jacobian(bearing))
+    }
+}
+
+impl From<Pinhole> for Camera {
+    fn from(m: Pinhole) -> Self {
+        Camera::Pinhole(m)
+    }
+}
+
+impl From<KannalaBrandt> for Camera {
+    fn from(m: KannalaBrandt) -> Self {
+        Camera::KannalaBrandt(m)
+    }
+}
+
+impl From<Equirectangular> for Camera {
+    fn from(m: Equirectangular) -> Self {
+        Camera::Equirectangular(m)
+    }
+}
+
+impl From<Lut> for Camera {
+    fn from(m: Lut) -> Self {
+        Camera::Lut(m)
+    }
+}
+
+impl From<TabulatedPinhole> for Camera {
+    fn from(m: TabulatedPinhole) -> Self {
+        Camera::TabulatedPinhole(m)
+    }
+}

@@ -1,0 +1,1052 @@
+//! The localizer: frame after frame, a visual GPS fix for a robot stack.
+//!
+//! A [`Localizer`] is built from a rig calibration ([`Rig`]), a surveyed landmark map
+//! ([`LandmarkMap`], shared in an `Arc`) and [`LocalizerOptions`]. [`Localizer::process`]
+//! takes one [`Frame`] (time, detections as pixels or rays, optionally a satellite GPS
+//! position) and returns a [`LocalizerFix`]: status, position (ENU and WGS84), attitude
+//! (`enu_from_rig` and heading/pitch/roll), 6×6 covariance, and the landmarks and
+//! surrogates used.
+//!
+//! # Method
+//! 1. **Tracking.** With a fix less than [`LocalizerOptions::max_tracking_gap_s`] old, a
+//!    constant-velocity model (position and attitude rates from the last two fixes) predicts
+//!    the pose; each observation is associated with the landmark (surveyed or surrogate)
+//!    predicted nearest to it, within a gate of [`track::ASSOCIATION_GATE_SIGMAS`] σ that
+//!    includes the prediction's uncertainty; the pose is refined on the associations
+//!    (weighted by each one's σ, including the landmark's own σ over its range), outliers
+//!    beyond [`track::OUTLIER_SIGMAS`] are dropped, and association and refinement are
+//!    repeated from the refined pose. A tracked pose farther than
+//!    [`INNOVATION_GATE_SIGMAS`] from the prediction, or resting on fewer than three surveyed
+//!    landmarks and fewer than [`MIN_SURROGATE_FIX_ASSOCIATIONS`] associations, is not a fix.
+//! 2. **Re-acquisition.** Without a usable prediction (start, gap, tracking failure), the
+//!    matcher ([`crate::matcher::match_detections`]) identifies the landmarks around a prior:
+//!    the prediction (its radius growing with the gap), else the satellite GPS position of
+//!    the frame (radius [`LocalizerOptions::gnss_prior_radius_m`]: the satellite fix is used
+//!    as a prior and compared with the visual fix, never trusted as one), else a cold start
+//!    over the whole map when [`LocalizerOptions::cold_start`] is set. The matcher's pose
+//!    then seeds a tracking step, so every fix is computed the same way.
+//! 3. **Surrogates.** Observations not associated with a surveyed landmark go, with the
+//!    fix's pose and covariance, to a [`LandmarkMapper`] (Ku et al.'s online association and
+//!    projector-sum estimate). Mapped landmarks that meet the surrogate criteria
+//!    ([`crate::mapping::SurrogateCriteria`]) join the candidates of the next frames,
+//!    weighted by their covariance, so the fix continues where fewer than three surveyed
+//!    landmarks are visible. A fix from surrogates inherits their covariance, which grows
+//!    with every pose they were mapped from. The mapper gates with the pose error that is
+//!    independent from frame to frame; the error shared with the surrogates goes into their
+//!    pose-correlation floor only (wide gates made phantom surrogates from rays of several
+//!    landmarks).
+//!
+//! The localizer has no global state; it is `Send` (move it to a worker thread) and the map
+//! is shared read-only.
+//!
+//! # Example
+//! ```
+//! use std::sync::Arc;
+//! use vgps_core::localizer::{Frame, GnssPosition, Localizer, LocalizerOptions, LocalizerStatus};
+//! use vgps_sim::simulate::{Preset, Scenario, simulate};
+//!
+//! let drive = simulate(&Scenario::preset(Preset::Short, 7))?;
+//! let landmarks = drive.surveyed_landmarks()?;
+//! let map = Arc::new(vgps_core::localizer::LandmarkMap::from_landmarks(&landmarks, None)?);
+//! let rig = Arc::new(drive.scenario.rig.clone());
+//! let mut localizer = Localizer::new(rig, Arc::clone(&map), LocalizerOptions::default())?;
+//! // The first frame is found around the satellite GPS position, the others are tracked.
+//! let start = map.frame().try_to_geodetic(&drive.frames[0].world_from_rig.translation.vector)?;
+//! let mut ok = 0;
+//! for (k, f) in drive.frames.iter().take(40).enumerate() {
+//!     let detections: Vec<_> = f.detections.iter().map(|d| d.detection.clone()).collect();
+//!     let gnss = (k == 0).then_some(GnssPosition { position: start });
+//!     let fix = localizer.process(&Frame::from_detections(f.time_s, &detections, &map, gnss));
+//!     ok += usize::from(fix.status == LocalizerStatus::Ok);
+//! }
+//! assert!(ok >= 38);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+pub mod map;
+pub mod track;
+
+pub use map::LandmarkMap;
+
+use crate::mapping::{
+    LandmarkMapper, MappedLandmark, MapperOptions, MappingFrame, NearbySurrogate, RigObservation,
+};
+use crate::matcher::{Detection, MatchOptions, MatchStatus, SearchArea, match_detections};
+use nalgebra::{Matrix6, Rotation3, UnitQuaternion, Vector3};
+use std::sync::Arc;
+use track::{Candidate, CandidateSource, GuessUncertainty, ObsRay};
+use vgps_camera::calibration::{Pixel, Rig};
+use vgps_geometry::attitude::HeadingPitchRoll;
+use vgps_geometry::geo::Geodetic;
+use vgps_geometry::geometry::{Pose, Ray};
+
+/// Default standard deviation of a detection's pixel position per axis (pixels).
+pub const DEFAULT_PIXEL_SIGMA_PX: f64 = 0.5;
+/// Default longest gap between fixes over which the motion model predicts (seconds).
+pub const DEFAULT_MAX_TRACKING_GAP_S: f64 = 1.0;
+/// Fewest associations of a tracked fix (one more than a minimal sample, so every fix has
+/// a redundant observation to check it).
+pub const MIN_TRACKED_CORRESPONDENCES: usize = 4;
+/// Default prior radius around a satellite GPS position (metres): ~7× its CEP of 2 m.
+pub const DEFAULT_GNSS_PRIOR_RADIUS_M: f64 = 15.0;
+/// Default unmodelled acceleration of the motion model (m/s²).
+pub const DEFAULT_ACCELERATION_M_S2: f64 = 4.0;
+/// Default unmodelled angular acceleration of the motion model (rad/s²).
+pub const DEFAULT_ANGULAR_ACCELERATION_RAD_S2: f64 = 1.0;
+/// Smallest position σ of a prediction (metres).
+pub const MIN_PREDICTION_SIGMA_M: f64 = 0.05;
+/// Smallest attitude σ of a prediction (radians, 0.1°).
+pub const MIN_PREDICTION_SIGMA_RAD: f64 = 1.745_329_251_994_33e-3;
+/// A tracked fix whose mean squared normalised residual exceeds this is rejected (the
+/// associations do not fit one pose).
+pub const MAX_MEAN_CHI2: f64 = 6.0;
+/// A tracked pose farther from the motion model's prediction than this many σ of their
+/// combined uncertainty (`√(σ_pred² + σ_fix²)`, total position σ of each, the fix's with the
+/// error it shares with surrogates) is not a fix: the frame is re-acquired through the
+/// matcher instead. A wrong association set that still fits one pose (a minimal set, a
+/// misplaced landmark) moves the pose by metres while its own σ stays centimetres.
+pub const INNOVATION_GATE_SIGMAS: f64 = 4.0;
+/// Fewest associations of a fix that uses fewer than [`crate::fix::MIN_OBSERVATIONS`]
+/// surveyed landmarks. Surrogates have decimetre σ and share their errors; with a handful of
+/// them the mean-χ² test has too little redundancy to notice a wrong association set (on the
+/// reference drives, every such fix with fewer than 8 associations was metres off, while
+/// right fixes there use 15–30).
+pub const MIN_SURROGATE_FIX_ASSOCIATIONS: usize = 8;
+/// Default radius of a re-acquisition prior beyond the predicted position's 3σ (metres).
+pub const DEFAULT_REACQUIRE_MARGIN_M: f64 = 5.0;
+/// Default shortest interval between two cold starts (seconds of drive time): a cold start
+/// is expensive, so a lost localizer tries it at most this often.
+pub const DEFAULT_COLD_START_INTERVAL_S: f64 = 10.0;
+/// Surrogates are refreshed from the mapper every this many processed frames.
+pub const SURROGATE_REFRESH_FRAMES: usize = 3;
+/// Surrogates are kept within the visibility range plus this margin of the last fix
+/// (metres), enough for [`SURROGATE_REFRESH_FRAMES`] frames of travel.
+pub const SURROGATE_MARGIN_M: f64 = 20.0;
+/// Default shortest interval between two widened re-acquisitions (seconds of drive time):
+/// after a matcher search over every round of detection triples failed, the next searches
+/// within this interval use the first round only (see [`MatchOptions::max_rounds`]). A
+/// widened search that finds nothing costs up to a second on a night frame of 50 lights.
+pub const DEFAULT_WIDENED_ACQUISITION_INTERVAL_S: f64 = 5.0;
+/// Default tilt of a vehicle's rig from the vertical that re-acquisition allows (radians,
+/// 5°: road grades and body roll stay within it).
+pub const DEFAULT_LEVEL_TOLERANCE_RAD: f64 = 0.087_266_462_599_716_48;
+/// Vertical half-range of a matcher search area around a prior (metres).
+pub const PRIOR_VERTICAL_HALF_RANGE_M: f64 = 3.0;
+
+/// Options of a [`Localizer`]; `Default` gives the documented constants.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LocalizerOptions {
+    /// Pixel σ of a detection per axis (pixels), turned into an angular σ through the
+    /// camera model at each pixel.
+    pub pixel_sigma_px: f64,
+    /// Longest gap over which the motion model predicts (seconds).
+    pub max_tracking_gap_s: f64,
+    /// Prior radius around a satellite GPS position (metres).
+    pub gnss_prior_radius_m: f64,
+    /// Margin added to the predicted position's 3σ for a re-acquisition prior (metres).
+    pub reacquire_margin_m: f64,
+    /// Unmodelled acceleration (m/s²) of the motion model.
+    pub acceleration_m_s2: f64,
+    /// Unmodelled angular acceleration (rad/s²) of the motion model.
+    pub angular_acceleration_rad_s2: f64,
+    /// Try a cold start over the whole map when there is no prior.
+    pub cold_start: bool,
+    /// Shortest interval between cold starts (seconds).
+    pub cold_start_interval_s: f64,
+    /// Shortest interval between widened re-acquisitions that failed (seconds; see
+    /// [`DEFAULT_WIDENED_ACQUISITION_INTERVAL_S`]).
+    pub widened_acquisition_interval_s: f64,
+    /// Map unassociated observations and use surrogate landmarks.
+    pub surrogates: bool,
+    /// Options of the mapper behind the surrogates.
+    pub mapper: MapperOptions,
+    /// Options of the matcher (its `sigma_rad` is replaced by the frame's median angular σ).
+    /// The default keeps every inlier link (`min_link_probability` 0): the localizer uses
+    /// only the matcher's pose, as the guess from which tracking associates the
+    /// observations again.
+    pub matcher: MatchOptions,
+    /// The rig's z axis is within this angle of the local vertical (radians) — true of a
+    /// rig on a vehicle: the matcher then prunes by elevation. `None` for a rig that may be
+    /// held at any attitude (a slower search).
+    pub level_tolerance_rad: Option<f64>,
+}
+
+impl Default for LocalizerOptions {
+    fn default() -> Self {
+        Self {
+            pixel_sigma_px: DEFAULT_PIXEL_SIGMA_PX,
+            max_tracking_gap_s: DEFAULT_MAX_TRACKING_GAP_S,
+            gnss_prior_radius_m: DEFAULT_GNSS_PRIOR_RADIUS_M,
+            reacquire_margin_m: DEFAULT_REACQUIRE_MARGIN_M,
+            acceleration_m_s2: DEFAULT_ACCELERATION_M_S2,
+            angular_acceleration_rad_s2: DEFAULT_ANGULAR_ACCELERATION_RAD_S2,
+            cold_start: true,
+            cold_start_interval_s: DEFAULT_COLD_START_INTERVAL_S,
+            widened_acquisition_interval_s: DEFAULT_WIDENED_ACQUISITION_INTERVAL_S,
+            surrogates: true,
+            mapper: MapperOptions::default(),
+            matcher: MatchOptions {
+                min_link_probability: 0.0,
+                ..MatchOptions::default()
+            },
+            level_tolerance_rad: Some(DEFAULT_LEVEL_TOLERANCE_RAD),
+        }
+    }
+}
+
+/// Errors of the localizer's construction.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LocalizerError {
+    /// The landmark list is empty.
+    #[error("no landmarks: the localizer needs at least three surveyed landmarks")]
+    NoLandmarks,
+    /// A landmark could not be placed in the map.
+    #[error("landmark `{id}` (line {line}): {message}")]
+    Landmark {
+        /// Its id.
+        id: String,
+        /// Its line in the landmarks file (0 when not from a file).
+        line: u64,
+        /// What is wrong.
+        message: String,
+    },
+    /// An option is out of range.
+    #[error("invalid localizer option `{0}`")]
+    InvalidOption(&'static str),
+}
+
+/// What was measured for one observation of a frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Measurement {
+    /// A pixel of one camera of the rig.
+    Pixel {
+        /// Camera index in the rig.
+        camera: usize,
+        /// Column (pixels; integer = pixel centre).
+        u: f64,
+        /// Row (pixels; integer = pixel centre).
+        v: f64,
+    },
+    /// A ray in the rig frame with its angular σ per axis (radians).
+    Ray {
+        /// Origin (camera centre in the rig) and unit direction.
+        ray: Ray,
+        /// Angular σ per axis (radians).
+        sigma_rad: f64,
+    },
+}
+
+/// One observation (a detection) of a frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Observation {
+    /// The measurement.
+    pub measurement: Measurement,
+    /// Optional class code (see [`LandmarkMap::class_index`]); it must agree with the
+    /// landmark's when both are given.
+    pub class: Option<u32>,
+}
+
+/// A satellite GPS position given with a frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GnssPosition {
+    /// The satellite fix (interpolated at the frame time).
+    pub position: Geodetic,
+}
+
+/// One frame: its time, its observations and, optionally, the satellite GPS position at
+/// that time.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Frame {
+    /// Time (seconds; Unix time in drives).
+    pub time_s: f64,
+    /// The detections.
+    pub observations: Vec<Observation>,
+    /// The satellite GPS position at the frame time, if any.
+    pub gnss: Option<GnssPosition>,
+}
+
+impl Frame {
+    /// A frame from drive detections (pixels of the rig's cameras); class names are turned
+    /// into the map's class codes (a class no landmark has matches nothing but unlabelled
+    /// landmarks, so it is dropped).
+    pub fn from_detections(
+        time_s: f64,
+        detections: &[vgps_camera::imaging::Detection],
+        map: &LandmarkMap,
+        gnss: Option<GnssPosition>,
+    ) -> Self {
+        Self {
+            time_s,
+            observations: detections
+                .iter()
+                .map(|d| Observation {
+                    measurement: Measurement::Pixel {
+                        camera: d.camera,
+                        u: d.u,
+                        v: d.v,
+                    },
+                    class: d.class.as_deref().and_then(|c| map.class_index(c)),
+                })
+                .collect(),
+            gnss,
+        }
+    }
+}
+
+/// The status of a frame's fix.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum LocalizerStatus {
+    /// A fix.
+    Ok,
+    /// Two distinct poses explain the detections about equally well: no fix.
+    Ambiguous,
+    /// Fewer than three usable observations.
+    TooFewObservations,
+    /// No prior to search around and no cold start allowed (or not yet due).
+    NoPrior,
+    /// No pose explains the observations (no landmarks in view, or no consistent match).
+    NoFix,
+    /// The frame is invalid (non-finite time).
+    InvalidFrame,
+}
+
+impl LocalizerStatus {
+    /// The status as written in reports (`ok`, `ambiguous`, …).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Ok => "ok",
+            Self::Ambiguous => "ambiguous",
+            Self::TooFewObservations => "too_few_observations",
+            Self::NoPrior => "no_prior",
+            Self::NoFix => "no_fix",
+            Self::InvalidFrame => "invalid_frame",
+        }
+    }
+}
+
+impl std::fmt::Display for LocalizerStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// How a fix was found.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FixSource {
+    /// Tracked from the motion model's prediction.
+    Tracking,
+    /// Re-acquired by the matcher around a prior.
+    Matcher,
+    /// Re-acquired by a cold start over the whole map.
+    ColdStart,
+}
+
+impl FixSource {
+    /// The source as written in reports.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Tracking => "tracking",
+            Self::Matcher => "matcher",
+            Self::ColdStart => "cold_start",
+        }
+    }
+}
+
+/// A visual fix.
+///
+/// # Units
+/// Metres (ENU of the map), radians, WGS84 degrees for `geodetic`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Estimate {
+    /// `world_from_rig`, world = the map's ENU frame.
+    pub world_from_rig: Pose,
+    /// Covariance of `[δp (m), δθ (rad)]` in the map's ENU frame.
+    pub covariance: Matrix6<f64>,
+    /// The rig position in WGS84.
+    pub geodetic: Geodetic,
+    /// `enu_from_rig` with ENU at the rig's own position (local level).
+    pub enu_from_rig: UnitQuaternion<f64>,
+    /// Heading, pitch and roll of `enu_from_rig`.
+    pub heading_pitch_roll: HeadingPitchRoll,
+    /// Ids of the surveyed landmarks used.
+    pub landmarks: Vec<String>,
+    /// Track ids of the surrogate landmarks used.
+    pub surrogates: Vec<u64>,
+    /// RMS angular residual over the associations (radians).
+    pub rms_residual_rad: f64,
+}
+
+impl Estimate {
+    /// σ of the position along east, north and up (metres).
+    pub fn sigma_enu_m(&self) -> [f64; 3] {
+        [0, 1, 2].map(|k| self.covariance[(k, k)].max(0.0).sqrt())
+    }
+}
+
+/// The localizer's answer for one frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LocalizerFix {
+    /// The frame time (seconds).
+    pub time_s: f64,
+    /// The status; `estimate` is `Some` exactly when it is [`LocalizerStatus::Ok`].
+    pub status: LocalizerStatus,
+    /// A short explanation of the status.
+    pub message: String,
+    /// How the fix was found (`None` without a fix).
+    pub source: Option<FixSource>,
+    /// The fix.
+    pub estimate: Option<Estimate>,
+    /// Observations of the frame.
+    pub n_observations: usize,
+    /// Observations rejected before use (pixel outside its camera's image, unknown camera,
+    /// non-finite values).
+    pub n_rejected: usize,
+    /// Horizontal distance between the visual fix and the frame's satellite GPS position
+    /// (metres), when both exist.
+    pub gnss_difference_m: Option<f64>,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct MotionState {
+    time_s: f64,
+    pose: Pose,
+    covariance: Matrix6<f64>,
+    velocity: Vector3<f64>,
+    angular_velocity: Vector3<f64>,
+}
+
+/// The localizer (see the module docs). Cloning it forks its state (motion model and
+/// mapped landmarks); the map stays shared.
+#[derive(Clone, Debug)]
+pub struct Localizer {
+    rig: Arc<Rig>,
+    map: Arc<LandmarkMap>,
+    options: LocalizerOptions,
+    state: Option<MotionState>,
+    mapper: LandmarkMapper,
+    surrogates: Vec<NearbySurrogate>,
+    /// Per surrogate, its candidate without position check (computed once per refresh).
+    surrogate_candidates: Vec<Candidate>,
+    frames_since_refresh: usize,
+    last_cold_start_s: Option<f64>,
+    /// Drive time of the last widened matcher search that found no fix.
+    last_failed_widening_s: Option<f64>,
+    neighbours: Vec<usize>,
+}
+
+impl Localizer {
+    /// A localizer for a rig and a shared landmark map.
+    ///
+    /// # Errors
+    /// [`LocalizerError::InvalidOption`] for an option out of range (non-positive σ or gap,
+    /// negative radius, or invalid mapper options).
+    pub fn new(
+        rig: Arc<Rig>,
+        map: Arc<LandmarkMap>,
+        options: LocalizerOptions,
+    ) -> Result<Self, LocalizerError> {
+        let positive = |v: f64| v.is_finite() && v > 0.0;
+        if !positive(options.pixel_sigma_px) {
+            return Err(LocalizerError::InvalidOption("pixel_sigma_px"));
+        }
+        if !positive(options.max_tracking_gap_s) {
+            return Err(LocalizerError::InvalidOption("max_tracking_gap_s"));
+        }
+        if !positive(options.gnss_prior_radius_m) {
+            return Err(LocalizerError::InvalidOption("gnss_prior_radius_m"));
+        }
+        if !(options.reacquire_margin_m.is_finite() && options.reacquire_margin_m >= 0.0) {
+            return Err(LocalizerError::InvalidOption("reacquire_margin_m"));
+        }
+        if !(options.acceleration_m_s2.is_finite() && options.acceleration_m_s2 >= 0.0) {
+            return Err(LocalizerError::InvalidOption("acceleration_m_s2"));
+        }
+        if !(options.angular_acceleration_rad_s2.is_finite()
+            && options.angular_acceleration_rad_s2 >= 0.0)
+        {
+            return Err(LocalizerError::InvalidOption("angular_acceleration_rad_s2"));
+        }
+        if !(options.cold_start_interval_s.is_finite() && options.cold_start_interval_s >= 0.0) {
+            return Err(LocalizerError::InvalidOption("cold_start_interval_s"));
+        }
+        if !(options.widened_acquisition_interval_s.is_finite()
+            && options.widened_acquisition_interval_s >= 0.0)
+        {
+            return Err(LocalizerError::InvalidOption(
+                "widened_acquisition_interval_s",
+            ));
+        }
+        let mapper = LandmarkMapper::new(options.mapper)
+            .map_err(|_| LocalizerError::InvalidOption("mapper"))?;
+        Ok(Self {
+            rig,
+            map,
+            options,
+            state: None,
+            mapper,
+            surrogates: Vec::new(),
+            surrogate_candidates: Vec::new(),
+            frames_since_refresh: 0,
+            last_cold_start_s: None,
+            last_failed_widening_s: None,
+            neighbours: Vec::new(),
+        })
+    }
+
+    /// The shared landmark map.
+    pub fn map(&self) -> &Arc<LandmarkMap> {
+        &self.map
+    }
+
+    /// The surrogate landmarks near the last fix (mapped landmarks that meet the surrogate
+    /// criteria), as refreshed every [`SURROGATE_REFRESH_FRAMES`] frames.
+    pub fn surrogates(&self) -> &[NearbySurrogate] {
+        &self.surrogates
+    }
+
+    /// Every landmark mapped so far (surrogates and the rest), refined.
+    pub fn mapped_landmarks(&self) -> Vec<MappedLandmark> {
+        self.mapper.landmarks()
+    }
+
+    /// Forgets the motion state (the next frame is re-acquired from a prior or a cold
+    /// start); the mapped landmarks are kept.
+    pub fn reset(&mut self) {
+        self.state = None;
+    }
+
+    /// Processes one frame (see the module docs). Never panics; a frame without a fix gets
+    /// a status saying why.
+    pub fn process(&mut self, frame: &Frame) -> LocalizerFix {
+        let mut fix = LocalizerFix {
+            time_s: frame.time_s,
+            status: LocalizerStatus::NoFix,
+            message: String::new(),
+            source: None,
+            estimate: None,
+            n_observations: frame.observations.len(),
+            n_rejected: 0,
+            gnss_difference_m: None,
+        };
+        if !frame.time_s.is_finite() {
+            fix.status = LocalizerStatus::InvalidFrame;
+            fix.message = "non-finite frame time".into();
+            return fix;
+        }
+        let observations = self.observation_rays(frame, &mut fix.n_rejected);
+        if observations.len() < crate::fix::MIN_OBSERVATIONS {
+            fix.status = LocalizerStatus::TooFewObservations;
+            fix.message = format!(
+                "{} usable observation(s), at least {} needed",
+                observations.len(),
+                crate::fix::MIN_OBSERVATIONS
+            );
+            return fix;
+        }
+        // Time going backwards: the motion model cannot predict; start over.
+        if self.state.is_some_and(|s| frame.time_s < s.time_s) {
+            self.state = None;
+        }
+        let gnss_enu = frame.gnss.map(|g| self.map.frame().to_enu(&g.position));
+
+        let mut tracked = None;
+        if let Some(state) = self.state
+            && frame.time_s - state.time_s <= self.options.max_tracking_gap_s
+        {
+            let (pose, guess) = self.predict(&state, frame.time_s);
+            let candidates = self.candidates(&pose.translation.vector, 0.0);
+            tracked = track::track(
+                &pose,
+                guess,
+                &observations,
+                &candidates,
+                MIN_TRACKED_CORRESPONDENCES,
+            )
+            .filter(|t| t.mean_chi2 <= MAX_MEAN_CHI2)
+            .filter(|t| redundant_enough(t, &candidates))
+            .filter(|t| consistent_with_prediction(&pose, &guess, t, &candidates, &observations))
+            .map(|t| (t, candidates, FixSource::Tracking));
+        }
+        if tracked.is_none() {
+            match self.reacquire(frame.time_s, &observations, gnss_enu) {
+                Ok(t) => tracked = Some(t),
+                Err((status, message)) => {
+                    fix.status = status;
+                    fix.message = message;
+                }
+            }
+        }
+        let Some((t, candidates, source)) = tracked else {
+            if fix.message.is_empty() {
+                fix.message = "no pose fits the observations".into();
+            }
+            return fix;
+        };
+        // The fix.
+        let mut landmarks = Vec::new();
+        let mut surrogates = Vec::new();
+        for ci in t.assignment.iter().flatten() {
+            match candidates[*ci].source {
+                CandidateSource::Surveyed(k) => {
+                    if let Some(l) = self.map.db().get(k) {
+                        landmarks.push(l.id.clone());
+                    }
+                }
+                CandidateSource::Surrogate(id) => surrogates.push(id),
+            }
+        }
+        // The reported covariance adds the error shared with surrogates; the motion model and
+        // the mapper keep the refinement's own covariance (the shared part is already inside
+        // the surrogates they work with).
+        let mut reported = t.clone();
+        // The refinement's own covariance: the part of the pose error that is independent
+        // from frame to frame (observation noise), what the mapper gates and refines with.
+        let own_covariance = t.covariance;
+        let n_surveyed = t
+            .assignment
+            .iter()
+            .flatten()
+            .filter(|&&ci| matches!(candidates[ci].source, CandidateSource::Surveyed(_)))
+            .count();
+        add_common_mode(&mut reported, &candidates, &observations);
+        // Without three surveyed landmarks the pose inherits the surrogates' shared error:
+        // the motion model and the mapper carry it on, so covariance grows along a
+        // surrogate-only stretch.
+        let t = if n_surveyed < crate::fix::MIN_OBSERVATIONS {
+            reported.clone()
+        } else {
+            t
+        };
+        let position = t.world_from_rig.translation.vector;
+        let Ok(geodetic) = self.map.frame().try_to_geodetic(&position) else {
+            fix.message = "the fix is outside the supported heights".into();
+            return fix;
+        };
+        let enu_here_from_world = self.map.frame().enu_here_from_enu_at(&geodetic).inverse();
+        let enu_from_rig: Rotation3<f64> = enu_here_from_world * t.world_from_rig.rotation;
+        let heading_pitch_roll = HeadingPitchRoll::from_enu_from_rig(&enu_from_rig);
+        fix.gnss_difference_m = gnss_enu.map(|g| (g - position).xy().norm());
+        self.update_state(frame.time_s, &t.world_from_rig, &t.covariance);
+        if self.options.surrogates {
+            self.map_observations(
+                frame.time_s,
+                &t,
+                &own_covariance,
+                &candidates,
+                &observations,
+            );
+        }
+        fix.status = LocalizerStatus::Ok;
+        fix.source = Some(source);
+        fix.message = format!(
+            "{} surveyed landmark(s), {} surrogate(s)",
+            landmarks.len(),
+            surrogates.len()
+        );
+        fix.estimate = Some(Estimate {
+            world_from_rig: t.world_from_rig,
+            covariance: reported.covariance,
+            geodetic,
+            enu_from_rig: UnitQuaternion::from_rotation_matrix(&enu_from_rig),
+            heading_pitch_roll,
+            landmarks,
+            surrogates,
+            rms_residual_rad: t.rms_residual_rad,
+        });
+        fix
+    }
+
+    /// Rays and angular σ of the frame's usable observations.
+    fn observation_rays(&self, frame: &Frame, rejected: &mut usize) -> Vec<ObsRay> {
+        let mut out = Vec::with_capacity(frame.observations.len());
+        for o in &frame.observations {
+            let ray = match o.measurement {
+                Measurement::Ray { ray, sigma_rad } => {
+                    let ok = vgps_geometry::geometry::is_finite(&ray.origin)
+                        && vgps_geometry::geometry::is_finite(&ray.direction)
+                        && (ray.direction.norm() - 1.0).abs() < 1e-6
+                        && sigma_rad.is_finite()
+                        && sigma_rad > 0.0;
+                    ok.then_some(ObsRay {
+                        ray,
+                        sigma_rad,
+                        class: o.class,
+                    })
+                }
+                Measurement::Pixel { camera, u, v } => self.pixel_ray(camera, u, v, o.class),
+            };
+            match ray {
+                Some(r) => out.push(r),
+                None => *rejected += 1,
+            }
+        }
+        out
+    }
+
+    /// The ray of a pixel and its angular σ (see [`Rig::try_ray_with_sigma`]).
+    fn pixel_ray(&self, camera: usize, u: f64, v: f64, class: Option<u32>) -> Option<ObsRay> {
+        let (ray, sigma_rad) =
+            self.rig
+                .try_ray_with_sigma(camera, &Pixel::new(u, v), self.options.pixel_sigma_px)?;
+        Some(ObsRay {
+            ray,
+            sigma_rad,
+            class,
+        })
+    }
+
+    /// The motion model's prediction at `time_s` and its uncertainty.
+    fn predict(&self, state: &MotionState, time_s: f64) -> (Pose, GuessUncertainty) {
+        let dt = (time_s - state.time_s).max(0.0);
+        let rotation = Rotation3::new(state.angular_velocity * dt) * state.pose.rotation;
+        let translation = state.pose.translation.vector + state.velocity * dt;
+        let pose = Pose::from_parts(translation.into(), rotation);
+        let c = &state.covariance;
+        let last_pos = (c[(0, 0)] + c[(1, 1)] + c[(2, 2)]).max(0.0).sqrt();
+        let last_rot = (c[(3, 3)] + c[(4, 4)] + c[(5, 5)]).max(0.0).sqrt();
+        // The velocity comes from two fixes: its error is about √2·σ/dt per axis, and the
+        // unmodelled acceleration adds a·dt²/2.
+        let position_m = (last_pos * (1.0 + std::f64::consts::SQRT_2)
+            + 0.5 * self.options.acceleration_m_s2 * dt * dt)
+            .max(MIN_PREDICTION_SIGMA_M);
+        let rotation_rad = (last_rot * (1.0 + std::f64::consts::SQRT_2)
+            + 0.5 * self.options.angular_acceleration_rad_s2 * dt * dt)
+            .max(MIN_PREDICTION_SIGMA_RAD);
+        (
+            pose,
+            GuessUncertainty {
+                position_m,
+                rotation_rad,
+            },
+        )
+    }
+
+    /// Surveyed landmarks within visibility range of `position` (plus `margin_m`), and the
+    /// current surrogates.
+    fn candidates(&mut self, position: &Vector3<f64>, margin_m: f64) -> Vec<Candidate> {
+        let range = self.options.matcher.visibility_range_m + margin_m;
+        self.neighbours.clear();
+        self.map.db().within(position, range, &mut self.neighbours);
+        let mut out: Vec<Candidate> = self
+            .neighbours
+            .iter()
+            .filter_map(|&k| {
+                let l = self.map.db().get(k)?;
+                Some(Candidate {
+                    position: l.position_in_world,
+                    sigma_m: l.sigma_m,
+                    class: l.class,
+                    source: CandidateSource::Surveyed(k),
+                    common_covariance: None,
+                })
+            })
+            .collect();
+        if self.options.surrogates {
+            out.extend(
+                self.surrogate_candidates
+                    .iter()
+                    .filter(|c| (c.position - position).norm() <= range),
+            );
+        }
+        out
+    }
+
+    /// Re-acquisition through the matcher, around the best prior available.
+    #[allow(clippy::type_complexity)]
+    fn reacquire(
+        &mut self,
+        time_s: f64,
+        observations: &[ObsRay],
+        gnss_enu: Option<Vector3<f64>>,
+    ) -> Result<(track::TrackResult, Vec<Candidate>, FixSource), (LocalizerStatus, String)> {
+        let predicted = self.state.map(|s| {
+            let (pose, guess) = self.predict(&s, time_s);
+            let dt = (time_s - s.time_s).max(0.0);
+            // Beyond the motion model's horizon, allow for travel at the last speed.
+            let radius = 3.0 * guess.position_m
+                + self.options.reacquire_margin_m
+                + s.velocity.norm() * 0.25 * dt;
+            (pose.translation.vector, radius)
+        });
+        let (area, source) = if let Some((centre, radius)) = predicted
+            && time_s - self.state.map_or(f64::INFINITY, |s| s.time_s)
+                <= self.options.max_tracking_gap_s * 4.0
+        {
+            (
+                SearchArea::around(&centre, radius, PRIOR_VERTICAL_HALF_RANGE_M),
+                FixSource::Matcher,
+            )
+        } else if let Some(g) = gnss_enu {
+            (
+                SearchArea::around(
+                    &g,
+                    self.options.gnss_prior_radius_m,
+                    PRIOR_VERTICAL_HALF_RANGE_M + self.options.gnss_prior_radius_m * 0.5,
+                ),
+                FixSource::Matcher,
+            )
+        } else if self.options.cold_start {
+            let due = self
+                .last_cold_start_s
+                .is_none_or(|t| (time_s - t).abs() >= self.options.cold_start_interval_s);
+            if !due {
+                return Err((
+                    LocalizerStatus::NoPrior,
+                    "no prior; the next cold start is not yet due".into(),
+                ));
+            }
+            self.last_cold_start_s = Some(time_s);
+            let (lo, hi) = self.map.db().bounds().ok_or((
+                LocalizerStatus::NoFix,
+                "the landmark map is empty".to_string(),
+            ))?;
+            let margin = self.options.matcher.cell_size_m;
+            (
+                SearchArea::try_new(
+                    Vector3::new(lo.x - margin, lo.y - margin, lo.z - 30.0),
+                    Vector3::new(hi.x + margin, hi.y + margin, hi.z),
+                ),
+                FixSource::ColdStart,
+            )
+        } else {
+            return Err((
+                LocalizerStatus::NoPrior,
+                "no prior (no recent fix, no satellite GPS) and cold start disabled".into(),
+            ));
+        };
+        let area = area.ok_or((LocalizerStatus::NoFix, "invalid search area".to_string()))?;
+        let detections: Vec<Detection> = observations
+            .iter()
+            .map(|o| Detection {
+                ray: o.ray,
+                class: o.class,
+            })
+            .collect();
+        let mut sigmas: Vec<f64> = observations.iter().map(|o| o.sigma_rad).collect();
+        sigmas.sort_by(f64::total_cmp);
+        let widen = self
+            .last_failed_widening_s
+            .is_none_or(|t| (time_s - t).abs() >= self.options.widened_acquisition_interval_s);
+        let options = MatchOptions {
+            sigma_rad: sigmas[sigmas.len() / 2],
+            up_in_rig: self
+                .options
+                .level_tolerance_rad
+                .map(|tol| (Vector3::z(), tol))
+                .or(self.options.matcher.up_in_rig),
+            max_rounds: if widen {
+                self.options.matcher.max_rounds
+            } else {
+                1
+            },
+            ..self.options.matcher
+        };
+        let result = match_detections(self.map.db(), &detections, &area, &options)
+            .map_err(|e| (LocalizerStatus::NoFix, e.to_string()))?;
+        if widen && options.max_rounds > 1 && result.status != MatchStatus::Ok {
+            self.last_failed_widening_s = Some(time_s);
+        }
+        let estimate = match result.status {
+            MatchStatus::Ok => result.estimate,
+            MatchStatus::Ambiguous => {
+                return Err((LocalizerStatus::Ambiguous, result.message));
+            }
+            _ => return Err((LocalizerStatus::NoFix, result.message)),
+        };
+        let estimate = estimate.ok_or((LocalizerStatus::NoFix, "matcher gave no pose".into()))?;
+        let position = estimate.world_from_rig.translation.vector;
+        let candidates = self.candidates(&position, 0.0);
+        let c = &estimate.covariance;
+        let guess = GuessUncertainty {
+            position_m: (c[(0, 0)] + c[(1, 1)] + c[(2, 2)])
+                .max(0.0)
+                .sqrt()
+                .max(MIN_PREDICTION_SIGMA_M),
+            rotation_rad: (c[(3, 3)] + c[(4, 4)] + c[(5, 5)])
+                .max(0.0)
+                .sqrt()
+                .max(MIN_PREDICTION_SIGMA_RAD),
+        };
+        let t = track::track(
+            &estimate.world_from_rig,
+            guess,
+            observations,
+            &candidates,
+            MIN_TRACKED_CORRESPONDENCES,
+        )
+        .filter(|t| t.mean_chi2 <= MAX_MEAN_CHI2)
+        .filter(|t| redundant_enough(t, &candidates))
+        .ok_or((
+            LocalizerStatus::NoFix,
+            "the matcher's pose did not track".to_string(),
+        ))?;
+        Ok((t, candidates, source))
+    }
+
+    fn update_state(&mut self, time_s: f64, pose: &Pose, covariance: &Matrix6<f64>) {
+        let (velocity, angular_velocity) = match self.state {
+            Some(s)
+                if time_s > s.time_s && time_s - s.time_s <= self.options.max_tracking_gap_s =>
+            {
+                let dt = time_s - s.time_s;
+                let v = (pose.translation.vector - s.pose.translation.vector) / dt;
+                let w = (pose.rotation * s.pose.rotation.inverse()).scaled_axis() / dt;
+                (v, w)
+            }
+            _ => (Vector3::zeros(), Vector3::zeros()),
+        };
+        self.state = Some(MotionState {
+            time_s,
+            pose: *pose,
+            covariance: *covariance,
+            velocity,
+            angular_velocity,
+        });
+    }
+
+    /// Gives the mapper the observations not associated with a surveyed landmark and
+    /// refreshes the surrogates every [`SURROGATE_REFRESH_FRAMES`] frames.
+    ///
+    /// The mapper gates and refines with `own_covariance` (the refinement's covariance, the
+    /// part of the pose error independent from frame to frame); the pose covariance of `t`,
+    /// which includes the error shared with the surrogates the fix used, goes only into the
+    /// surrogates' pose-correlation floor. Gating with the shared error (σ of a metre along
+    /// a surrogate-only stretch) let rays of different landmarks form one track: phantom
+    /// surrogates metres from any landmark, with a σ of 0.2–0.4 m, that pulled the fix tens
+    /// of metres off (see docs/localizer.md, "Phantom surrogates").
+    fn map_observations(
+        &mut self,
+        time_s: f64,
+        t: &track::TrackResult,
+        own_covariance: &Matrix6<f64>,
+        candidates: &[Candidate],
+        observations: &[ObsRay],
+    ) {
+        let unassociated: Vec<RigObservation> = observations
+            .iter()
+            .zip(&t.assignment)
+            .filter(|(_, a)| {
+                !matches!(
+                    a.map(|ci| candidates[ci].source),
+                    Some(CandidateSource::Surveyed(_))
+                )
+            })
+            .map(|(o, _)| RigObservation {
+                ray_in_rig: o.ray,
+                sigma_rad: o.sigma_rad,
+                class: o.class,
+            })
+            .collect();
+        let frame = MappingFrame {
+            time_s,
+            world_from_rig: t.world_from_rig,
+            pose_covariance: *own_covariance,
+            observations: unassociated,
+        };
+        let shared = t.covariance.fixed_view::<3, 3>(0, 0).into_owned();
+        // A frame the mapper rejects (it validates poses and rays) is simply not mapped.
+        let _ = self.mapper.add_frame_with_shared(&frame, &shared);
+        self.frames_since_refresh += 1;
+        if self.frames_since_refresh >= SURROGATE_REFRESH_FRAMES {
+            self.frames_since_refresh = 0;
+            let radius = self.options.matcher.visibility_range_m + SURROGATE_MARGIN_M;
+            self.surrogates = self
+                .mapper
+                .surrogates_near(&t.world_from_rig.translation.vector, radius);
+            self.surrogate_candidates = self
+                .surrogates
+                .iter()
+                .map(|s| {
+                    let l = &s.landmark;
+                    // Gates and weights use the surrogate's own covariance (what varies
+                    // between surrogates); the shared part only widens the fix's covariance.
+                    Candidate {
+                        position: l.position_enu,
+                        sigma_m: l.covariance.symmetric_eigenvalues().max().max(0.0).sqrt(),
+                        class: l.class,
+                        source: CandidateSource::Surrogate(l.id),
+                        common_covariance: Some(l.covariance + s.pose_floor_covariance),
+                    }
+                })
+                .collect();
+        }
+    }
+}
+
+/// True when the tracked pose `t` is within [`INNOVATION_GATE_SIGMAS`] of the prediction
+/// `predicted` (position σ `guess.position_m`), given the fix's position covariance with the
+/// error it shares with surrogates (see [`add_common_mode`]).
+fn consistent_with_prediction(
+    predicted: &Pose,
+    guess: &GuessUncertainty,
+    t: &track::TrackResult,
+    candidates: &[Candidate],
+    observations: &[ObsRay],
+) -> bool {
+    let c = t.covariance.fixed_view::<3, 3>(0, 0) + common_mode(t, candidates, observations);
+    let fix2 = c.trace().max(0.0);
+    let innovation = (t.world_from_rig.translation.vector - predicted.translation.vector).norm();
+    innovation <= INNOVATION_GATE_SIGMAS * (guess.position_m * guess.position_m + fix2).sqrt()
+}
+
+/// True when `t` uses at least [`crate::fix::MIN_OBSERVATIONS`] surveyed landmarks, or at
+/// least [`MIN_SURROGATE_FIX_ASSOCIATIONS`] associations in all.
+fn redundant_enough(t: &track::TrackResult, candidates: &[Candidate]) -> bool {
+    let mut surveyed = 0;
+    let mut all = 0;
+    for &ci in t.assignment.iter().flatten() {
+        all += 1;
+        if matches!(
+            candidates.get(ci).map(|c| c.source),
+            Some(CandidateSource::Surveyed(_))
+        ) {
+            surveyed += 1;
+        }
+    }
+    surveyed >= crate::fix::MIN_OBSERVATIONS || all >= MIN_SURROGATE_FIX_ASSOCIATIONS
+}
+
+/// Adds to a fix's position covariance the error it shares with its surrogates.
+///
+/// Surrogates mapped from the same drifting poses share one error, which averaging over
+/// them does not reduce. If they all moved by `δ`, the fix would move by about `f·δ`, with
+/// `f` the share of the fix's information that comes from surrogates (weights `1/σᵢ²` of the
+/// associations). The added term is `f²·Σ̄`, with `Σ̄` the mean of the surrogates' full
+/// covariances including their pose-correlation floor.
+fn add_common_mode(t: &mut track::TrackResult, candidates: &[Candidate], observations: &[ObsRay]) {
+    let add = common_mode(t, candidates, observations);
+    let mut block = t.covariance.fixed_view_mut::<3, 3>(0, 0);
+    block += add;
+}
+
+/// The position covariance [`add_common_mode`] adds to the fix `t` (zero without surrogates).
+fn common_mode(
+    t: &track::TrackResult,
+    candidates: &[Candidate],
+    observations: &[ObsRay],
+) -> nalgebra::Matrix3<f64> {
+    let mut total = 0.0;
+    let mut from_surrogates = 0.0;
+    let mut common = nalgebra::Matrix3::zeros();
+    let mut n_common = 0.0;
+    let p = t.world_from_rig.translation.vector;
+    for (o, a) in observations.iter().zip(&t.assignment) {
+        let Some(c) = a.map(|ci| &candidates[ci]) else {
+            continue;
+        };
+        let range = (c.position - p).norm().max(1.0);
+        let w = 1.0 / (o.sigma_rad * o.sigma_rad + (c.sigma_m / range).powi(2));
+        total += w;
+        if let Some(cov) = c.common_covariance {
+            from_surrogates += w;
+            common += cov;
+            n_common += 1.0;
+        }
+    }
+    if n_common > 0.0 && total > 0.0 {
+        let f = from_surrogates / total;
+        common * (f * f / n_common)
+    } else {
+        nalgebra::Matrix3::zeros()
+    }
+}

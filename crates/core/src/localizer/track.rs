@@ -1,0 +1,410 @@
+//! Tracking: associate each observation with the landmark (surveyed or surrogate) predicted
+//! nearest to it from a pose guess, then refine the pose on the associations.
+
+use crate::mapping::{CONE_ABSOLUTE_MARGIN, CONE_MIN_COS, CONE_RELATIVE_MARGIN, max_or_nan};
+use nalgebra::{Matrix6, Vector3};
+use vgps_geometry::geometry::{Pose, Ray};
+use vgps_geometry::solvers::refine_pose::refine_pose_with_sigmas;
+use vgps_geometry::solvers::{RefineOptions, RobustLoss};
+
+/// Where a candidate landmark comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum CandidateSource {
+    /// A surveyed landmark: its index in the map's database.
+    Surveyed(usize),
+    /// A surrogate (mapped) landmark: its track id.
+    Surrogate(u64),
+}
+
+/// A landmark the observations may be associated with.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Candidate {
+    pub position: Vector3<f64>,
+    /// Standard deviation of the position per axis (metres; isotropic bound).
+    pub sigma_m: f64,
+    pub class: Option<u32>,
+    pub source: CandidateSource,
+    /// For a surrogate: its full covariance plus its pose-correlation floor (m²), the
+    /// error it shares with the poses it was mapped from.
+    pub common_covariance: Option<nalgebra::Matrix3<f64>>,
+}
+
+/// One observation ready for tracking: its ray in the rig frame and angular σ.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ObsRay {
+    pub ray: Ray,
+    pub sigma_rad: f64,
+    pub class: Option<u32>,
+}
+
+/// The uncertainty of a pose guess, for the association gates.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct GuessUncertainty {
+    /// Position σ per axis, metres.
+    pub position_m: f64,
+    /// Attitude σ per axis, radians.
+    pub rotation_rad: f64,
+}
+
+/// The result of tracking.
+#[derive(Clone, Debug)]
+pub(crate) struct TrackResult {
+    pub world_from_rig: Pose,
+    pub covariance: Matrix6<f64>,
+    /// Per observation: the candidate index it is associated with (inliers only).
+    pub assignment: Vec<Option<usize>>,
+    pub rms_residual_rad: f64,
+    /// Mean squared normalised residual of the inliers.
+    pub mean_chi2: f64,
+}
+
+/// Gate on the normalised angular residual of an association (σ units).
+pub const ASSOCIATION_GATE_SIGMAS: f64 = 5.0;
+/// After refinement, an association whose normalised residual exceeds this is dropped.
+pub const OUTLIER_SIGMAS: f64 = 4.0;
+/// Association / refinement passes.
+pub const TRACKING_PASSES: usize = 3;
+
+/// The angular σ of candidate `c` seen from `origin_in_world`, given the guess uncertainty.
+fn predicted_sigma(obs: &ObsRay, c: &Candidate, range: f64, guess: &GuessUncertainty) -> f64 {
+    let lateral = (guess.position_m * guess.position_m + c.sigma_m * c.sigma_m) / (range * range);
+    (obs.sigma_rad * obs.sigma_rad + lateral + guess.rotation_rad * guess.rotation_rad).sqrt()
+}
+
+/// The largest noise terms of a frame's observations, for [`gate_cone`].
+#[derive(Clone, Copy, Debug)]
+struct ObsSpread {
+    /// Largest `σ_obs²` (rad²).
+    sigma2: f64,
+    /// Largest camera offset from the rig origin (metres).
+    offset: f64,
+}
+
+impl ObsSpread {
+    fn of(observations: &[ObsRay]) -> Self {
+        // NaN terms propagate (and then disable the cone).
+        observations.iter().fold(
+            Self {
+                sigma2: 0.0,
+                offset: 0.0,
+            },
+            |w, o| Self {
+                sigma2: max_or_nan(w.sigma2, o.sigma_rad * o.sigma_rad),
+                offset: max_or_nan(w.offset, o.ray.origin.norm()),
+            },
+        )
+    }
+}
+
+/// Observation directions may be this far from unit length (see `observation_rays`).
+const DIRECTION_NORM_TOLERANCE: f64 = 1e-5;
+
+/// A cone `(axis, min_cos)` of rig-frame directions outside which no observation can pass
+/// the gate of [`associate`] for a candidate at `in_rig`: a conservative pre-filter
+/// (`u · axis < min_cos` ⇒ the pair fails the gate), derived from the gate itself.
+///
+/// The gate passes only when the candidate is within `δ = g √(|v|²(σ_obs² + σ_rot²) + σ_lat²)`
+/// of the observation's ray in front of its camera `x` (`v` the candidate from `x`, `|v| ≤
+/// |c| + |x|`); the parallel ray from the rig origin then passes within `ρ = δ + |x|`, so its
+/// direction is within `asin(ρ / |c|)` of the candidate's.
+fn gate_cone(in_rig: &Vector3<f64>, gate: &GateTerms, w: &ObsSpread) -> (Vector3<f64>, f64) {
+    let every = (Vector3::zeros(), f64::NEG_INFINITY);
+    let d = in_rig.norm();
+    let range = d + w.offset;
+    let var = range * range * (w.sigma2 + gate.rot2) + gate.lateral2;
+    // |u × v| ≤ δ with |u| ≥ 1 − tolerance.
+    let delta = (gate.gate2 * var).sqrt() / (1.0 - DIRECTION_NORM_TOLERANCE);
+    let rho = (delta + w.offset) * (1.0 + CONE_RELATIVE_MARGIN) + CONE_ABSOLUTE_MARGIN;
+    let k = rho / d;
+    if k.is_nan() || k >= 1.0 {
+        return every;
+    }
+    // u · axis = |u| cos θ ≥ (1 − tolerance) cos θ.
+    let min_cos = (1.0 - k * k).sqrt() * (1.0 - DIRECTION_NORM_TOLERANCE) - CONE_ABSOLUTE_MARGIN;
+    if min_cos.is_nan() || min_cos <= CONE_MIN_COS {
+        return every;
+    }
+    (in_rig / d, min_cos)
+}
+
+/// The squared terms of the association gate `z ≤ gate_sigmas` for one candidate under a
+/// pose guess, shared by [`gate_cone`] and [`pair_z`].
+#[derive(Clone, Copy, Debug)]
+struct GateTerms {
+    /// The gate, in σ.
+    gate_sigmas: f64,
+    /// Its square.
+    gate2: f64,
+    /// The guess's rotation variance (rad²).
+    rot2: f64,
+    /// The guess's position variance plus the candidate's (m²).
+    lateral2: f64,
+}
+
+impl GateTerms {
+    fn new(guess: &GuessUncertainty, c: &Candidate, gate_sigmas: f64) -> Self {
+        Self {
+            gate_sigmas,
+            gate2: gate_sigmas * gate_sigmas,
+            rot2: guess.rotation_rad * guess.rotation_rad,
+            lateral2: guess.position_m * guess.position_m + c.sigma_m * c.sigma_m,
+        }
+    }
+}
+
+/// The normalised residual `z` of observation `o` against candidate `c` (at `in_rig` in the
+/// rig frame of the pose guess), or `None` when the pair fails the gate `z ≤ gate_sigmas`
+/// (or the classes differ, or the candidate is not in front of the camera).
+#[inline]
+fn pair_z(
+    o: &ObsRay,
+    c: &Candidate,
+    in_rig: &Vector3<f64>,
+    guess: &GuessUncertainty,
+    gate: &GateTerms,
+) -> Option<f64> {
+    if let (Some(a), Some(b)) = (o.class, c.class)
+        && a != b
+    {
+        return None;
+    }
+    // z² = sin²/σ² with sin² = |u × v|²/|v|² and σ² from `predicted_sigma`, rearranged so
+    // that the gate needs neither a square root nor a division:
+    // |u × v|² ≤ g² (|v|² (σ_obs² + σ_rot²) + σ_pos² + σ_c²).
+    let GateTerms {
+        gate_sigmas,
+        gate2,
+        rot2,
+        lateral2,
+    } = *gate;
+    let v = in_rig - o.ray.origin;
+    let range2 = v.norm_squared();
+    if !range2.is_finite() || range2 <= f64::EPSILON * f64::EPSILON {
+        return None;
+    }
+    if o.ray.direction.dot(&v) <= 0.0 {
+        return None;
+    }
+    let cross2 = o.ray.direction.cross(&v).norm_squared();
+    let var = range2 * (o.sigma_rad * o.sigma_rad + rot2) + lateral2;
+    if cross2 > gate2 * var {
+        return None;
+    }
+    let range = range2.sqrt();
+    let sin = cross2.sqrt() / range;
+    let sigma = predicted_sigma(o, c, range, guess);
+    let z = sin / sigma;
+    (z <= gate_sigmas).then_some(z)
+}
+
+/// Associates observations with candidates one-to-one (smallest normalised residual first)
+/// from the pose guess; returns per observation the candidate index.
+fn associate(
+    pose: &Pose,
+    guess: &GuessUncertainty,
+    observations: &[ObsRay],
+    candidates: &[Candidate],
+    gate_sigmas: f64,
+    pairs: &mut Vec<(f64, usize, usize)>,
+) -> Vec<Option<usize>> {
+    pairs.clear();
+    let rig_from_world = pose.inverse();
+    let worst = ObsSpread::of(observations);
+    for (ci, c) in candidates.iter().enumerate() {
+        let in_rig = rig_from_world * nalgebra::Point3::from(c.position);
+        let gate = GateTerms::new(guess, c, gate_sigmas);
+        let (axis, min_cos) = gate_cone(&in_rig.coords, &gate, &worst);
+        for (oi, o) in observations.iter().enumerate() {
+            if o.ray.direction.dot(&axis) < min_cos {
+                continue;
+            }
+            if let Some(z) = pair_z(o, c, &in_rig.coords, guess, &gate) {
+                pairs.push((z, oi, ci));
+            }
+        }
+    }
+    pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut assignment = vec![None; observations.len()];
+    let mut taken = vec![false; candidates.len()];
+    for &(_, oi, ci) in pairs.iter() {
+        if assignment[oi].is_none() && !taken[ci] {
+            assignment[oi] = Some(ci);
+            taken[ci] = true;
+        }
+    }
+    assignment
+}
+
+/// Tracks from a pose guess: associate, refine, drop outliers, re-associate with the
+/// refined pose. `None` when fewer than `min_correspondences` associations survive or the
+/// refinement fails.
+pub(crate) fn track(
+    guess_pose: &Pose,
+    guess: GuessUncertainty,
+    observations: &[ObsRay],
+    candidates: &[Candidate],
+    min_correspondences: usize,
+) -> Option<TrackResult> {
+    let mut pose = *guess_pose;
+    let mut uncertainty = guess;
+    let mut pairs = Vec::new();
+    let mut result: Option<TrackResult> = None;
+    let mut rays = Vec::with_capacity(observations.len());
+    let mut points = Vec::with_capacity(observations.len());
+    let mut sigmas = Vec::with_capacity(observations.len());
+    let mut index = Vec::with_capacity(observations.len());
+    let options = RefineOptions {
+        loss: RobustLoss::None,
+        accept_unconverged: true,
+        ..RefineOptions::default()
+    };
+    for _ in 0..TRACKING_PASSES {
+        let mut assignment = associate(
+            &pose,
+            &uncertainty,
+            observations,
+            candidates,
+            ASSOCIATION_GATE_SIGMAS,
+            &mut pairs,
+        );
+        let mut refined = None;
+        // Refine, drop the worst outlier-beyond-threshold, refine again.
+        for _ in 0..observations.len() {
+            rays.clear();
+            points.clear();
+            sigmas.clear();
+            index.clear();
+            for (oi, a) in assignment.iter().enumerate() {
+                if let Some(ci) = *a {
+                    let o = &observations[oi];
+                    let c = &candidates[ci];
+                    let range = (c.position - pose.translation.vector).norm().max(1.0);
+                    let s = (o.sigma_rad * o.sigma_rad + (c.sigma_m / range).powi(2)).sqrt();
+                    rays.push(o.ray);
+                    points.push(c.position);
+                    sigmas.push(s);
+                    index.push(oi);
+                }
+            }
+            if rays.len() < min_correspondences {
+                return result;
+            }
+            let r = refine_pose_with_sigmas(&pose, &rays, &points, &sigmas, &options).ok()?;
+            // Normalised residuals at the refined pose.
+            let rig_from_world = r.world_from_rig.inverse();
+            let mut worst = (0.0, usize::MAX);
+            let mut chi2 = 0.0;
+            for k in 0..rays.len() {
+                let v =
+                    (rig_from_world * nalgebra::Point3::from(points[k])).coords - rays[k].origin;
+                let n = v.norm().max(f64::EPSILON);
+                let sin = rays[k].direction.cross(&v).norm() / n;
+                let z = sin / sigmas[k];
+                chi2 += z * z;
+                if z > worst.0 {
+                    worst = (z, k);
+                }
+            }
+            if worst.0 > OUTLIER_SIGMAS && worst.1 < index.len() {
+                assignment[index[worst.1]] = None;
+                continue;
+            }
+            refined = Some((r, chi2 / rays.len() as f64));
+            break;
+        }
+        let (r, mean_chi2) = refined?;
+        pose = r.world_from_rig;
+        uncertainty = GuessUncertainty {
+            position_m: (r.covariance[(0, 0)] + r.covariance[(1, 1)] + r.covariance[(2, 2)])
+                .max(0.0)
+                .sqrt()
+                .max(1e-3),
+            rotation_rad: (r.covariance[(3, 3)] + r.covariance[(4, 4)] + r.covariance[(5, 5)])
+                .max(0.0)
+                .sqrt()
+                .max(1e-5),
+        };
+        let unchanged = result
+            .as_ref()
+            .is_some_and(|prev| prev.assignment == assignment);
+        result = Some(TrackResult {
+            world_from_rig: r.world_from_rig,
+            covariance: r.covariance,
+            assignment,
+            rms_residual_rad: r.rms_residual_rad,
+            mean_chi2,
+        });
+        if unchanged {
+            break;
+        }
+    }
+    result
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::RngExt;
+    use vgps_geometry::synthetic::{random_unit_vector, rng};
+
+    /// The cone of [`gate_cone`] never rejects a pair that [`pair_z`] accepts (directions of
+    /// every length the localizer accepts, cameras off the rig origin), and it does reject
+    /// most pairs well outside the gate.
+    #[test]
+    fn gate_cone_never_rejects_a_passing_pair() {
+        let mut r = rng(0x5eed_c0de);
+        let (mut passed, mut outside, mut rejected_outside) = (0, 0, 0);
+        for _ in 0..3000 {
+            let guess = GuessUncertainty {
+                position_m: r.random_range(0.001..2.0),
+                rotation_rad: r.random_range(1e-5..0.02),
+            };
+            let c = Candidate {
+                position: random_unit_vector(&mut r) * r.random_range(0.5..150.0),
+                sigma_m: r.random_range(0.0..1.0),
+                class: None,
+                source: CandidateSource::Surveyed(0),
+                common_covariance: None,
+            };
+            let observations: Vec<ObsRay> = (0..20)
+                .map(|_| {
+                    let origin = random_unit_vector(&mut r) * r.random_range(0.0..0.3);
+                    let sigma_rad: f64 = r.random_range(1e-4..5e-3);
+                    let to = c.position - origin;
+                    // Aim at the candidate, off by 0 to 4 angular gate widths.
+                    let width = ASSOCIATION_GATE_SIGMAS
+                        * (sigma_rad.powi(2)
+                            + guess.rotation_rad.powi(2)
+                            + (guess.position_m.powi(2) + c.sigma_m.powi(2)) / to.norm_squared())
+                        .sqrt();
+                    let off = random_unit_vector(&mut r) * (r.random_range(0.0..4.0) * width);
+                    let direction =
+                        (to.normalize() + off).normalize() * (1.0 + r.random_range(-1e-6..1e-6));
+                    ObsRay {
+                        ray: Ray { origin, direction },
+                        sigma_rad,
+                        class: None,
+                    }
+                })
+                .collect();
+            let worst = ObsSpread::of(&observations);
+            let gate = GateTerms::new(&guess, &c, ASSOCIATION_GATE_SIGMAS);
+            let (axis, min_cos) = gate_cone(&c.position, &gate, &worst);
+            for o in &observations {
+                let admitted = o.ray.direction.dot(&axis) >= min_cos;
+                if pair_z(o, &c, &c.position, &guess, &gate).is_some() {
+                    passed += 1;
+                    assert!(admitted, "passing pair rejected: {o:?} {c:?} {guess:?}");
+                } else {
+                    outside += 1;
+                    rejected_outside += usize::from(!admitted);
+                }
+            }
+        }
+        assert!(passed > 10_000 && outside > 10_000, "{passed} {outside}");
+        assert!(
+            rejected_outside * 2 > outside,
+            "the cone rejects only {rejected_outside} of {outside} failing pairs"
+        );
+    }
+}

@@ -1,0 +1,284 @@
+//! Track files: GeoJSON (RFC 7946), KML 2.2 and GPX 1.1.
+
+use super::csv_out::{ANGLE_DECIMALS, LATLON_DECIMALS, METRE_DECIMALS, fmt_opt};
+use super::derived::{derive, finite, runs};
+use super::time::utc_iso8601;
+use super::{DriveInfo, FrameRecord};
+use serde_json::{Map, Value, json};
+use std::fmt::Write;
+use vgps_geometry::geo::Geodetic;
+
+/// The three tracks: name, position getter, KML colour (`aabbggrr`).
+type Getter = fn(&FrameRecord) -> Option<&Geodetic>;
+const TRACKS: [(&str, Getter, &str); 3] = [
+    (
+        "visual",
+        |r| r.visual.as_ref().map(|v| &v.geodetic),
+        "ff2020e0",
+    ),
+    ("gnss", |r| r.gnss.as_ref(), "ffe08020"),
+    (
+        "truth",
+        |r| r.truth.as_ref().map(|t| &t.geodetic),
+        "ff20b020",
+    ),
+];
+
+/// `x` rounded to `decimals` decimals as a JSON number (`null` if not finite).
+fn jnum(x: f64, decimals: i32) -> Value {
+    let s = 10f64.powi(decimals);
+    finite(x)
+        .map(|v| json!((v * s).round() / s + 0.0))
+        .unwrap_or(Value::Null)
+}
+
+fn position(g: &Geodetic) -> Value {
+    json!([
+        jnum(g.lon_deg, LATLON_DECIMALS as i32),
+        jnum(g.lat_deg, LATLON_DECIMALS as i32),
+        jnum(g.alt_m, METRE_DECIMALS as i32)
+    ])
+}
+
+/// The runs (index ranges) of consecutive records that have a position on `track`.
+fn segments(records: &[FrameRecord], get: Getter) -> Vec<(usize, usize)> {
+    runs(records.iter().map(|r| get(r).is_some()))
+}
+
+/// `track.geojson`: an RFC 7946 FeatureCollection (positions `[lon, lat, alt]`, WGS84) with
+///
+/// - one `LineString` per run of ≥ 2 consecutive frames of each track, properties
+///   `{"track": "visual"|"gnss"|"truth", "first_frame", "last_frame"}`;
+/// - one `Point` per visual fix, properties `frame`, `time_s`, `time` (ISO 8601 UTC),
+///   `status`, `heading_deg`, `pitch_deg`, `roll_deg`, `sigma_e_m`, `sigma_n_m`,
+///   `sigma_u_m`, `n_landmarks`, `n_surrogates`, `blackout`, and `err_h_m` / `diff_h_m`
+///   when truth / satellite exist.
+pub fn track_geojson(drive: &DriveInfo, records: &[FrameRecord]) -> String {
+    let geom = derive(drive, records);
+    let mut features = Vec::new();
+    for (name, get, _) in TRACKS {
+        for (a, b) in segments(records, get) {
+            if b == a {
+                continue;
+            }
+            let coords: Vec<Value> = records[a..=b]
+                .iter()
+                .filter_map(|r| get(r).map(position))
+                .collect();
+            features.push(json!({
+                "type": "Feature",
+                "properties": {
+                    "track": name,
+                    "first_frame": records[a].frame,
+                    "last_frame": records[b].frame,
+                },
+                "geometry": {"type": "LineString", "coordinates": coords},
+            }));
+        }
+    }
+    for (r, g) in records.iter().zip(&geom) {
+        let Some(v) = &r.visual else { continue };
+        let mut p = Map::new();
+        p.insert("track".into(), json!("visual_fix"));
+        p.insert("frame".into(), json!(r.frame));
+        p.insert("time_s".into(), jnum(r.time_s, 6));
+        p.insert(
+            "time".into(),
+            utc_iso8601(r.time_s)
+                .map(Value::from)
+                .unwrap_or(Value::Null),
+        );
+        p.insert("status".into(), json!(r.status));
+        for (k, x, d) in [
+            ("heading_deg", v.heading_deg, ANGLE_DECIMALS),
+            ("pitch_deg", v.pitch_deg, ANGLE_DECIMALS),
+            ("roll_deg", v.roll_deg, ANGLE_DECIMALS),
+            ("sigma_e_m", v.sigma_e_m, METRE_DECIMALS),
+            ("sigma_n_m", v.sigma_n_m, METRE_DECIMALS),
+            ("sigma_u_m", v.sigma_u_m, METRE_DECIMALS),
+        ] {
+            p.insert(k.into(), jnum(x, d as i32));
+        }
+        p.insert("n_landmarks".into(), json!(v.n_landmarks));
+        p.insert("n_surrogates".into(), json!(v.n_surrogates));
+        p.insert("blackout".into(), json!(g.blackout));
+        if let Some(d) = g.visual_vs_truth {
+            p.insert("err_h_m".into(), jnum(d.h, METRE_DECIMALS as i32));
+        }
+        if let Some(d) = g.visual_vs_gnss {
+            p.insert("diff_h_m".into(), jnum(d.h, METRE_DECIMALS as i32));
+        }
+        features.push(json!({
+            "type": "Feature",
+            "properties": Value::Object(p),
+            "geometry": {"type": "Point", "coordinates": position(&v.geodetic)},
+        }));
+    }
+    let fc = json!({
+        "type": "FeatureCollection",
+        "name": drive.name,
+        "features": features,
+    });
+    let mut s = serde_json::to_string(&fc).unwrap_or_default();
+    s.push('\n');
+    s
+}
+
+/// Escapes `&`, `<`, `>`, `"` and `'` for XML text and attributes.
+pub(crate) fn xml_escape(s: &str) -> String {
+    let mut o = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '&' => o.push_str("&amp;"),
+            '<' => o.push_str("&lt;"),
+            '>' => o.push_str("&gt;"),
+            '"' => o.push_str("&quot;"),
+            '\'' => o.push_str("&apos;"),
+            // Control characters are not allowed in XML 1.0.
+            c if (c as u32) < 0x20 && !matches!(c, '\t' | '\n' | '\r') => o.push(' '),
+            c => o.push(c),
+        }
+    }
+    o
+}
+
+fn kml_coord(g: &Geodetic) -> String {
+    format!(
+        "{},{},{}",
+        fmt_opt(Some(g.lon_deg), LATLON_DECIMALS),
+        fmt_opt(Some(g.lat_deg), LATLON_DECIMALS),
+        fmt_opt(Some(g.alt_m), METRE_DECIMALS)
+    )
+}
+
+/// `track.kml`: a KML 2.2 Document with one Style per track, a Folder per track holding a
+/// `LineString` Placemark per run of consecutive frames (`clampToGround`: the heights are
+/// ellipsoidal, not above the terrain), and a Folder `fixes` with one `Point` Placemark per
+/// visual fix (name = frame, `TimeStamp`, a description with status, heading, σ and
+/// landmark counts). Coordinates are `lon,lat,alt`.
+pub fn track_kml(drive: &DriveInfo, records: &[FrameRecord]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n\
+         <kml xmlns=\"http://www.opengis.net/kml/2.2\">\n<Document>\n<name>{}</name>",
+        xml_escape(&drive.name)
+    );
+    for (name, _, colour) in TRACKS {
+        let _ = writeln!(
+            s,
+            "<Style id=\"{name}\"><LineStyle><color>{colour}</color><width>3</width></LineStyle>\
+             <IconStyle><color>{colour}</color><scale>0.5</scale></IconStyle></Style>"
+        );
+    }
+    for (name, get, _) in TRACKS {
+        let segs: Vec<_> = segments(records, get)
+            .into_iter()
+            .filter(|(a, b)| b > a)
+            .collect();
+        if segs.is_empty() {
+            continue;
+        }
+        let _ = writeln!(s, "<Folder>\n<name>{name}</name>");
+        for (a, b) in segs {
+            let coords: Vec<String> = records[a..=b]
+                .iter()
+                .filter_map(|r| get(r).map(kml_coord))
+                .collect();
+            let _ = writeln!(
+                s,
+                "<Placemark><name>{name} {}-{}</name><styleUrl>#{name}</styleUrl>\
+                 <LineString><tessellate>1</tessellate><altitudeMode>clampToGround</altitudeMode>\
+                 <coordinates>{}</coordinates></LineString></Placemark>",
+                records[a].frame,
+                records[b].frame,
+                coords.join(" ")
+            );
+        }
+        s.push_str("</Folder>\n");
+    }
+    if records.iter().any(|r| r.visual.is_some()) {
+        s.push_str("<Folder>\n<name>fixes</name>\n");
+        for r in records {
+            let Some(v) = &r.visual else { continue };
+            let when = utc_iso8601(r.time_s)
+                .map(|t| format!("<TimeStamp><when>{t}</when></TimeStamp>"))
+                .unwrap_or_default();
+            let desc = format!(
+                "status {}; heading {} deg; sigma e/n/u {}/{}/{} m; landmarks {}; surrogates {}",
+                r.status,
+                fmt_opt(Some(v.heading_deg), 2),
+                fmt_opt(Some(v.sigma_e_m), 3),
+                fmt_opt(Some(v.sigma_n_m), 3),
+                fmt_opt(Some(v.sigma_u_m), 3),
+                v.n_landmarks,
+                v.n_surrogates
+            );
+            let _ = writeln!(
+                s,
+                "<Placemark><name>{}</name>{when}<description>{}</description>\
+                 <styleUrl>#visual</styleUrl><Point><coordinates>{}</coordinates></Point>\
+                 </Placemark>",
+                r.frame,
+                xml_escape(&desc),
+                kml_coord(&v.geodetic)
+            );
+        }
+        s.push_str("</Folder>\n");
+    }
+    s.push_str("</Document>\n</kml>\n");
+    s
+}
+
+/// `track.gpx`: GPX 1.1 (namespace `http://www.topografix.com/GPX/1/1`) with metadata
+/// (name, time of the first frame) and one `trk` per track (`visual`, `gnss`, `truth`), one
+/// `trkseg` per run of consecutive frames, each `trkpt` with `ele` (ellipsoidal height),
+/// `time` (UTC) and, for visual fixes, `sat` (landmarks + surrogates).
+pub fn track_gpx(drive: &DriveInfo, records: &[FrameRecord]) -> String {
+    let mut s = String::new();
+    s.push_str(
+        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n\
+         <gpx version=\"1.1\" creator=\"vgps\" xmlns=\"http://www.topografix.com/GPX/1/1\" \
+         xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\" \
+         xsi:schemaLocation=\"http://www.topografix.com/GPX/1/1 \
+         http://www.topografix.com/GPX/1/1/gpx.xsd\">\n",
+    );
+    let _ = write!(s, "<metadata><name>{}</name>", xml_escape(&drive.name));
+    if let Some(t) = records.first().and_then(|r| utc_iso8601(r.time_s)) {
+        let _ = write!(s, "<time>{t}</time>");
+    }
+    s.push_str("</metadata>\n");
+    for (name, get, _) in TRACKS {
+        let segs = segments(records, get);
+        if segs.is_empty() {
+            continue;
+        }
+        let _ = writeln!(s, "<trk><name>{name}</name>");
+        for (a, b) in segs {
+            s.push_str("<trkseg>\n");
+            for r in &records[a..=b] {
+                let Some(g) = get(r) else { continue };
+                let _ = write!(
+                    s,
+                    "<trkpt lat=\"{}\" lon=\"{}\"><ele>{}</ele>",
+                    fmt_opt(Some(g.lat_deg), LATLON_DECIMALS),
+                    fmt_opt(Some(g.lon_deg), LATLON_DECIMALS),
+                    fmt_opt(Some(g.alt_m), METRE_DECIMALS)
+                );
+                if let Some(t) = utc_iso8601(r.time_s) {
+                    let _ = write!(s, "<time>{t}</time>");
+                }
+                if name == "visual"
+                    && let Some(v) = &r.visual
+                {
+                    let _ = write!(s, "<sat>{}</sat>", v.n_landmarks + v.n_surrogates);
+                }
+                s.push_str("</trkpt>\n");
+            }
+            s.push_str("</trkseg>\n");
+        }
+        s.push_str("</trk>\n");
+    }
+    s.push_str("</gpx>\n");
+    s
+}

@@ -1,0 +1,11 @@
+//! # vgps-sim — simulated worlds for tests, benchmarks and the demo
+//!
+//! - [`simulate`]: simulated drives (city, route, detections, satellite GPS with outages).
+//! - [`render`]: night frames of street lamps through a calibrated camera.
+//! - [`synthetic`]: every synthetic-problem generator of the workspace in one place.
+#![deny(missing_docs)]
+#![forbid(unsafe_code)]
+
+pub mod render;
+pub mod simulate;
+pub mod synthetic;

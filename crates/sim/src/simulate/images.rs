@@ -1,0 +1,371 @@
+//! Night images of a simulated drive: every camera of every frame rendered through the
+//! calibration ([`crate::render::Renderer`]) and written as PNG (`vgps simulate --images`).
+//!
+//! What is drawn in the image of camera `k` at frame `f` is what the simulator says camera
+//! `k` sees ([`SimFrame::visible`]): the streetlights (lamps of radius
+//! [`ImageOptions::lamp_radius_m`]) and the transient lights (car lights, windows: radius
+//! [`ImageOptions::transient_radius_m`], intensity drawn per light), with the renderer's
+//! range-dependent blob size and brightness, read and shot noise, plus
+//! [`RenderOptions::clutter_lights`] clutter spots. Building corners are not lights and are
+//! not drawn. Everything is deterministic for the scenario seed: the image of `(f, k)` uses
+//! the seed [`image_seed`]`(seed, f, k)`, whatever the number of threads.
+//!
+//! Files: `images/FFFFFF_K.png` ([`image_name`]), the `image_0 … image_5` columns of
+//! `frames.csv`, and the sidecar `images_truth.csv` (`frame,camera,kind,landmark,u,v,
+//! range_m,peak_dn,clipped`: every drawn spot, `kind` = `lamp`, `transient` or `clutter`).
+
+use super::{SimFrame, SimulatedDrive, Source};
+use crate::render::{LightSource, RenderOptions, RenderedFrame, Renderer, SpotKind};
+use rand::{RngExt, SeedableRng};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use vgps_camera::imaging::encode_png;
+use vgps_replay::drive::{DriveError, Frame, MAX_IMAGE_COLUMNS, frames_to_csv, write_text};
+
+/// The image directory inside a drive.
+pub const IMAGES_DIR: &str = "images";
+/// The image truth sidecar's file name.
+pub const IMAGES_TRUTH_NAME: &str = "images_truth.csv";
+/// Default radius of a streetlight's glowing part (metres).
+pub const DEFAULT_LAMP_RADIUS_M: f64 = 0.2;
+/// Default radius of a transient light (metres).
+pub const DEFAULT_TRANSIENT_RADIUS_M: f64 = 0.1;
+/// Default number of clutter spots per image.
+pub const DEFAULT_CLUTTER_LIGHTS: usize = 3;
+/// Salt of the per-image seed.
+const IMAGE_SEED_SALT: u64 = 0x696d_6167_6573_0001;
+
+/// What the images of a simulated drive show. [`Default`]: unit-intensity lamps of radius
+/// [`DEFAULT_LAMP_RADIUS_M`], transient lights of radius [`DEFAULT_TRANSIENT_RADIUS_M`] and
+/// intensity 0.3–1, the renderer's defaults with [`DEFAULT_CLUTTER_LIGHTS`] clutter spots.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ImageOptions {
+    /// The renderer's parameters.
+    pub render: RenderOptions,
+    /// Radius of a lamp's glowing part (metres).
+    pub lamp_radius_m: f64,
+    /// Relative intensity of a lamp (1 = typical).
+    pub lamp_intensity: f64,
+    /// Radius of a transient light (metres).
+    pub transient_radius_m: f64,
+    /// Range of a transient light's relative intensity, drawn uniformly per light.
+    pub transient_intensity: (f64, f64),
+}
+
+impl Default for ImageOptions {
+    fn default() -> Self {
+        Self {
+            render: RenderOptions {
+                clutter_lights: DEFAULT_CLUTTER_LIGHTS,
+                ..RenderOptions::default()
+            },
+            lamp_radius_m: DEFAULT_LAMP_RADIUS_M,
+            lamp_intensity: 1.0,
+            transient_radius_m: DEFAULT_TRANSIENT_RADIUS_M,
+            transient_intensity: (0.3, 1.0),
+        }
+    }
+}
+
+/// Counts of [`write_images`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ImagesSummary {
+    /// PNG files written.
+    pub images: usize,
+    /// Their total size (bytes).
+    pub bytes: u64,
+    /// Lamp spots drawn.
+    pub lamps: usize,
+    /// Transient-light spots drawn.
+    pub transients: usize,
+    /// Clutter spots drawn.
+    pub clutter: usize,
+}
+
+/// The image file of camera `camera` at frame `frame`, relative to the drive directory
+/// (`images/000123_2.png`).
+pub fn image_name(frame: u64, camera: usize) -> String {
+    format!("{IMAGES_DIR}/{frame:06}_{camera}.png")
+}
+
+/// The render seed of camera `camera` at frame `frame` for the scenario seed `seed`.
+pub fn image_seed(seed: u64, frame: u64, camera: usize) -> u64 {
+    let mut z = seed ^ IMAGE_SEED_SALT;
+    for x in [frame, camera as u64] {
+        z = (z ^ x).wrapping_add(0x9E37_79B9_7F4A_7C15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+    }
+    z
+}
+
+/// The lights camera `camera` sees at `frame` (lamps and transient lights, in the order of
+/// [`SimFrame::visible`]) with what each is (`Source`).
+pub fn lights_of(
+    drive: &SimulatedDrive,
+    frame: &SimFrame,
+    camera: usize,
+    options: &ImageOptions,
+) -> Vec<(LightSource, Source)> {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(image_seed(
+        drive.scenario.seed,
+        frame.frame,
+        camera,
+    ));
+    let (i0, i1) = options.transient_intensity;
+    frame
+        .visible
+        .iter()
+        .filter(|v| v.camera == camera)
+        .filter_map(|v| {
+            let (radius_m, intensity) = match v.source {
+                Source::Landmark(i) => {
+                    let lamp =
+                        drive.world.landmarks.get(i)?.class == super::LandmarkClass::Streetlight;
+                    if !lamp {
+                        return None;
+                    }
+                    (options.lamp_radius_m, options.lamp_intensity)
+                }
+                Source::Transient => (
+                    options.transient_radius_m,
+                    i0 + rng.random_range(0.0..1.0) * (i1 - i0),
+                ),
+            };
+            Some((
+                LightSource {
+                    point_in_camera: v.point_in_camera,
+                    radius_m,
+                    intensity,
+                },
+                v.source,
+            ))
+        })
+        .collect()
+}
+
+/// Renders every camera of `frame` (index order of the rig), with the lights of
+/// [`lights_of`] and the seed of [`image_seed`]; returns each image with its lights' sources.
+pub fn render_frame(
+    drive: &SimulatedDrive,
+    frame: &SimFrame,
+    renderer: &Renderer,
+    options: &ImageOptions,
+) -> Vec<(RenderedFrame, Vec<Source>)> {
+    drive
+        .scenario
+        .rig
+        .cameras()
+        .iter()
+        .enumerate()
+        .map(|(k, camera)| {
+            let (lights, sources): (Vec<LightSource>, Vec<Source>) =
+                lights_of(drive, frame, k, options).into_iter().unzip();
+            let seed = image_seed(drive.scenario.seed, frame.frame, k);
+            (renderer.render(&camera.model, &lights, seed), sources)
+        })
+        .collect()
+}
+
+/// Renders and writes the images of every frame under `dir/images/`, rewrites
+/// `dir/frames.csv` with the image columns and writes `dir/images_truth.csv`. Frames are
+/// rendered and encoded on `threads` threads (scoped threads taking frames in turn); the
+/// files do not depend on the number of threads. `progress` is called with the number of
+/// frames finished since its last call.
+///
+/// # Errors
+/// [`DriveError::Write`] naming the file that cannot be written (or the rig with more
+/// cameras than the drive format's [`MAX_IMAGE_COLUMNS`]).
+pub fn write_images(
+    drive: &SimulatedDrive,
+    dir: &Path,
+    options: &ImageOptions,
+    threads: usize,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<ImagesSummary, DriveError> {
+    let cameras = drive.scenario.rig.len();
+    let werr = |path: PathBuf, message: String| DriveError::Write {
+        path,
+        source: std::io::Error::other(message),
+    };
+    if cameras > MAX_IMAGE_COLUMNS {
+        return Err(werr(
+            dir.join("frames.csv"),
+            format!(
+                "the rig has {cameras} cameras, the drive format names at most {MAX_IMAGE_COLUMNS} images per frame"
+            ),
+        ));
+    }
+    let images_dir = dir.join(IMAGES_DIR);
+    std::fs::create_dir_all(&images_dir).map_err(|source| DriveError::Write {
+        path: images_dir.clone(),
+        source,
+    })?;
+    let renderer = Renderer::new(options.render.clone());
+    let next = AtomicUsize::new(0);
+    let threads = threads.clamp(1, drive.frames.len().max(1));
+    type FrameOutput = (usize, String, ImagesSummary);
+    let worker = || -> Result<Vec<FrameOutput>, DriveError> {
+        let mut done = Vec::new();
+        loop {
+            let index = next.fetch_add(1, Ordering::Relaxed);
+            let Some(frame) = drive.frames.get(index) else {
+                return Ok(done);
+            };
+            let mut rows = String::new();
+            let mut summary = ImagesSummary::default();
+            for (camera, (rendered, sources)) in render_frame(drive, frame, &renderer, options)
+                .into_iter()
+                .enumerate()
+            {
+                let path = dir.join(image_name(frame.frame, camera));
+                let bytes =
+                    encode_png(&rendered.image).map_err(|e| werr(path.clone(), e.to_string()))?;
+                write_bytes(&path, &bytes)?;
+                summary.images += 1;
+                summary.bytes += bytes.len() as u64;
+                for spot in &rendered.spots {
+                    let (kind, label) = match spot.kind {
+                        SpotKind::Lamp(i) => match sources.get(i) {
+                            Some(Source::Landmark(l)) => {
+                                summary.lamps += 1;
+                                ("lamp", drive.world.landmarks[*l].id.as_str())
+                            }
+                            _ => {
+                                summary.transients += 1;
+                                ("transient", "")
+                            }
+                        },
+                        SpotKind::Clutter => {
+                            summary.clutter += 1;
+                            ("clutter", "")
+                        }
+                    };
+                    let _ = writeln!(
+                        rows,
+                        "{},{camera},{kind},{label},{:.3},{:.3},{},{:.1},{}",
+                        frame.frame,
+                        spot.u,
+                        spot.v,
+                        spot.range_m.map_or(String::new(), |r| format!("{r:.2}")),
+                        spot.peak_dn,
+                        spot.clipped_by_border
+                    );
+                }
+            }
+            progress(1);
+            done.push((index, rows, summary));
+        }
+    };
+    let mut outputs: Vec<FrameOutput> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..threads).map(|_| scope.spawn(worker)).collect();
+        let mut all = Vec::with_capacity(drive.frames.len());
+        for h in handles {
+            match h.join() {
+                Ok(Ok(part)) => all.extend(part),
+                Ok(Err(e)) => return Err(e),
+                Err(_) => return Err(werr(images_dir.clone(), "a render thread panicked".into())),
+            }
+        }
+        Ok(all)
+    })?;
+    outputs.sort_by_key(|o| o.0);
+    let mut total = ImagesSummary::default();
+    let mut truth = String::from("frame,camera,kind,landmark,u,v,range_m,peak_dn,clipped\n");
+    for (_, rows, s) in &outputs {
+        truth.push_str(rows);
+        total.images += s.images;
+        total.bytes += s.bytes;
+        total.lamps += s.lamps;
+        total.transients += s.transients;
+        total.clutter += s.clutter;
+    }
+    write_text(&dir.join(IMAGES_TRUTH_NAME), &truth)?;
+    let frames: Vec<Frame> = drive
+        .frames
+        .iter()
+        .map(|f| Frame {
+            frame: f.frame,
+            time_s: f.time_s,
+            images: (0..cameras).map(|k| Some(image_name(f.frame, k))).collect(),
+        })
+        .collect();
+    write_text(&dir.join("frames.csv"), &frames_to_csv(&frames))?;
+    Ok(total)
+}
+
+/// Writes bytes atomically (temporary file in the same directory, then a rename).
+fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), DriveError> {
+    vgps_io::write_atomic(path, bytes).map_err(|source| DriveError::Write {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::simulate::{Preset, Scenario, simulate};
+
+    fn short_drive() -> SimulatedDrive {
+        let mut sc = Scenario::preset(Preset::Short, 5);
+        sc.length_m = 60.0;
+        simulate(&sc).unwrap()
+    }
+
+    #[test]
+    fn images_are_deterministic_and_thread_independent() {
+        let drive = short_drive();
+        let (a, b) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+        let options = ImageOptions::default();
+        let sa = write_images(&drive, a.path(), &options, 1, &|_| {}).unwrap();
+        let sb = write_images(&drive, b.path(), &options, 3, &|_| {}).unwrap();
+        assert_eq!(sa, sb);
+        assert_eq!(sa.images, drive.frames.len() * 6);
+        assert!(sa.lamps > drive.frames.len(), "{sa:?}");
+        for name in [IMAGES_TRUTH_NAME, "frames.csv"] {
+            assert_eq!(
+                std::fs::read(a.path().join(name)).unwrap(),
+                std::fs::read(b.path().join(name)).unwrap()
+            );
+        }
+        let f = &drive.frames[drive.frames.len() / 2];
+        for k in 0..6 {
+            let name = image_name(f.frame, k);
+            assert_eq!(
+                std::fs::read(a.path().join(&name)).unwrap(),
+                std::fs::read(b.path().join(&name)).unwrap()
+            );
+        }
+    }
+
+    #[test]
+    fn lamps_are_drawn_where_the_simulator_projects_them() {
+        let drive = short_drive();
+        let options = ImageOptions::default();
+        let renderer = Renderer::new(options.render.clone());
+        let frame = &drive.frames[3];
+        let images = render_frame(&drive, frame, &renderer, &options);
+        let mut checked = 0;
+        for v in &frame.visible {
+            let Source::Landmark(i) = v.source else {
+                continue;
+            };
+            if drive.world.landmarks[i].class != super::super::LandmarkClass::Streetlight {
+                continue;
+            }
+            let (rendered, _) = &images[v.camera];
+            let spot = rendered
+                .spots
+                .iter()
+                .find(|s| (s.u - v.pixel.x).hypot(s.v - v.pixel.y) < 1e-6);
+            assert!(spot.is_some(), "lamp {i} in camera {} not drawn", v.camera);
+            checked += 1;
+        }
+        assert!(checked > 3, "only {checked} lamps in view");
+        assert_ne!(image_seed(1, 2, 3), image_seed(1, 3, 2));
+        assert_eq!(image_name(123, 2), "images/000123_2.png");
+    }
+}
