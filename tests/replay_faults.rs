@@ -2,7 +2,8 @@
 //! output directory that cannot be written (works as root and in CI: a path under a regular
 //! file, ENOTDIR; an output file name taken by a directory, EISDIR on the rename). In every
 //! case the previous report in `--out` stays whole and parses, and no temporary file is left
-//! except, after a SIGKILL, the clearly named `.NAME.tmp-PID-N` of the write in progress.
+//! except, after a SIGKILL, the clearly named `.NAME.tmp-PID-XXXXXXXX` of the write in progress (eight random
+//! alphanumeric characters).
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::sync::OnceLock;
@@ -107,14 +108,16 @@ fn temp_files(dir: &Path) -> Vec<String> {
         .collect()
 }
 
-/// `.NAME.tmp-PID-N` with NAME one of the outputs.
+/// `.NAME.tmp-PID-XXXXXXXX` with NAME one of the outputs and eight random alphanumerics.
 fn clearly_named(temp: &str) -> bool {
     OUTPUTS.iter().any(|o| {
         temp.strip_prefix(&format!(".{o}.tmp-"))
             .is_some_and(|rest| {
                 let mut parts = rest.split('-');
                 parts.next().is_some_and(|p| p.parse::<u32>().is_ok())
-                    && parts.next().is_some_and(|n| n.parse::<u64>().is_ok())
+                    && parts.next().is_some_and(|r| {
+                        r.len() == 8 && r.bytes().all(|b| b.is_ascii_alphanumeric())
+                    })
                     && parts.next().is_none()
             })
     })

@@ -3,15 +3,16 @@
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
 
-/// Distinguishes the temporary files of concurrent writes within one process.
-static TEMP_COUNTER: AtomicU64 = AtomicU64::new(0);
+/// Random characters in a temporary file's name.
+const TEMP_RANDOM_CHARS: usize = 8;
 
-/// Writes `bytes` to `path` atomically: the bytes go to a hidden temporary file in the same
-/// directory (`.NAME.tmp-PID-N`), are flushed to disk, and the file is renamed over `path`.
-/// A reader sees either the old file whole or the new one whole; on failure the temporary
-/// file is removed and an existing `path` is left untouched.
+/// Writes `bytes` to `path` atomically: the bytes go to a temporary file with an
+/// unpredictable name in the same directory (`.NAME.tmp-PID-XXXXXXXX`, created exclusively
+/// by `tempfile`), are flushed to disk, the file is renamed over `path`, and the directory is
+/// synced so that the rename survives a crash. A reader sees either the old file whole or
+/// the new one whole; on failure the temporary file is removed and an existing `path` is
+/// left untouched.
 ///
 /// # Errors
 /// The I/O error of the failed step (`InvalidInput` when `path` has no file name). Callers
@@ -35,16 +36,29 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .ok_or_else(|| std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a file name"))?;
-    let n = TEMP_COUNTER.fetch_add(1, Ordering::Relaxed);
-    let tmp = dir.join(format!(".{name}.tmp-{}-{n}", std::process::id()));
-    let result = std::fs::File::create(&tmp)
-        .and_then(|mut f| {
-            f.write_all(bytes)?;
-            f.sync_all()
-        })
-        .and_then(|()| std::fs::rename(&tmp, path));
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
+    // `.NAME.tmp-PID-XXXXXXXX`: which write it was stays visible after a crash, the random
+    // part makes the name unpredictable. Dropping `tmp` on an error path removes the file.
+    let mut tmp = tempfile::Builder::new()
+        .prefix(&format!(".{name}.tmp-{}-", std::process::id()))
+        .rand_bytes(TEMP_RANDOM_CHARS)
+        .tempfile_in(&dir)?;
+    tmp.write_all(bytes)?;
+    tmp.as_file().sync_all()?;
+    tmp.persist(path).map_err(|e| e.error)?;
+    sync_dir(&dir)
+}
+
+/// Flushes a directory's entries (the rename) to disk. Not every platform can open a
+/// directory for syncing; where it cannot, the rename is still atomic, only its durability
+/// is the file system's.
+fn sync_dir(dir: &Path) -> std::io::Result<()> {
+    match std::fs::File::open(dir) {
+        Ok(d) => match d.sync_all() {
+            Ok(()) => Ok(()),
+            // Some file systems refuse fsync on a directory (EINVAL): nothing more to do.
+            Err(e) if e.kind() == std::io::ErrorKind::InvalidInput => Ok(()),
+            Err(e) => Err(e),
+        },
+        Err(_) => Ok(()),
     }
-    result
 }

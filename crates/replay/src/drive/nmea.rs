@@ -19,6 +19,7 @@
 //! `GGA` gives the height above mean sea level and the geoid separation `N`; the ellipsoidal
 //! height is their sum (an empty separation is taken as 0).
 
+use crate::report::time::{date_from_days, days_from_date};
 use std::fmt::Write as _;
 use vgps_geometry::geo::Geodetic;
 
@@ -26,8 +27,8 @@ use vgps_geometry::geo::Geodetic;
 const DAY_S: f64 = 86_400.0;
 /// Half a day: the largest plausible gap between a `GGA` and the `RMC` that dates it.
 const HALF_DAY_S: f64 = 43_200.0;
-/// Units of the written minutes of arc: 1e-7 minute (≈ 0.19 mm of latitude).
-const MINUTE_UNITS: f64 = 1e7;
+/// Decimals of the written minutes of arc: 1e-7 minute (≈ 0.19 mm of latitude).
+const MINUTE_DECIMALS: usize = 7;
 /// How many messages about invalid sentences [`NmeaStats::messages`] keeps.
 const MAX_MESSAGES: usize = 20;
 
@@ -310,11 +311,10 @@ fn parse_rmc(f: &[&str]) -> Result<(i64, f64), String> {
     let day: u32 = d[0..2].parse().map_err(|_| bad())?;
     let month: u32 = d[2..4].parse().map_err(|_| bad())?;
     let yy: i64 = d[4..6].parse().map_err(|_| bad())?;
-    if !(1..=31).contains(&day) || !(1..=12).contains(&month) {
-        return Err(bad());
-    }
     let year = if yy < 80 { 2000 + yy } else { 1900 + yy };
-    Ok((days_from_civil(year, month, day), tod))
+    // A date that does not exist (31 February, month 13) is an error, not the next month.
+    let days = days_from_date(year, month, day).ok_or_else(bad)?;
+    Ok((days, tod))
 }
 
 /// GGA → (time of day, fix or none).
@@ -358,45 +358,31 @@ fn parse_hdt(f: &[&str]) -> Result<f64, String> {
     Ok(h.rem_euclid(360.0))
 }
 
-/// Days since 1970-01-01 of a proleptic Gregorian date (H. Hinnant's algorithm).
-pub fn days_from_civil(year: i64, month: u32, day: u32) -> i64 {
-    let y = if month <= 2 { year - 1 } else { year };
-    let era = y.div_euclid(400);
-    let yoe = y - era * 400;
-    let m = i64::from(month);
-    let doy = (153 * (if m > 2 { m - 3 } else { m + 9 }) + 2) / 5 + i64::from(day) - 1;
-    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
-    era * 146_097 + doe - 719_468
-}
-
-/// The date (year, month, day) of a day number since 1970-01-01.
-pub fn civil_from_days(days: i64) -> (i64, u32, u32) {
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let day = (doy - (153 * mp + 2) / 5 + 1) as u32;
-    let month = if mp < 10 { mp + 3 } else { mp - 9 } as u32;
-    let year = yoe + era * 400 + i64::from(month <= 2);
-    (year, month, day)
-}
-
-fn push_sentence(out: &mut String, body: &str) {
+/// Appends `$BODY*CS\r\n` (the checksum as two upper-case hex digits): the one sentence
+/// writer of vgps, shared by the drive's satellite GPS and the replay's `fixes.nmea`.
+pub(crate) fn push_sentence(out: &mut String, body: &str) {
     let _ = write!(out, "${body}*{:02X}\r\n", checksum(body));
 }
 
-/// `ddmm.mmmmmmm` / `dddmm.mmmmmmm` with its hemisphere letter.
-fn format_angle(value: f64, degree_digits: usize, positive: char, negative: char) -> String {
-    let units = (value.abs() * 60.0 * MINUTE_UNITS).round() as u64;
-    let per_degree = (60.0 * MINUTE_UNITS) as u64;
+/// An angle as NMEA writes it, `ddmm.mmm…,H` (latitude, `degree_digits` 2) or `dddmm.mmm…,H`
+/// (longitude, 3), with `minute_decimals` decimals of a minute and its hemisphere letter.
+/// Rounded in units of the last decimal first, so that 59.99…' carries into the degrees.
+pub(crate) fn format_angle(
+    value: f64,
+    degree_digits: usize,
+    minute_decimals: usize,
+    positive: char,
+    negative: char,
+) -> String {
+    let minute_units = 10_u64.pow(minute_decimals as u32);
+    let units = (value.abs() * 60.0 * minute_units as f64).round() as u64;
+    let per_degree = 60 * minute_units;
     let deg = units / per_degree;
     let rem = units % per_degree;
-    let min = rem / MINUTE_UNITS as u64;
-    let frac = rem % MINUTE_UNITS as u64;
+    let min = rem / minute_units;
+    let frac = rem % minute_units;
     let hemi = if value < 0.0 { negative } else { positive };
-    format!("{deg:0degree_digits$}{min:02}.{frac:07},{hemi}")
+    format!("{deg:0degree_digits$}{min:02}.{frac:0minute_decimals$},{hemi}")
 }
 
 /// Writes receiver epochs as NMEA text: per epoch `$GPRMC`, `$GPGGA` and, with a heading,
@@ -412,7 +398,9 @@ pub fn write_nmea(records: &[GnssRecord], geoid_separation_m: f64) -> String {
         let centis = (r.time_s * 100.0).round() as i64;
         let days = centis.div_euclid(8_640_000);
         let tod_c = centis.rem_euclid(8_640_000);
-        let (year, month, day) = civil_from_days(days);
+        let Some((year, month, day)) = date_from_days(days) else {
+            continue;
+        };
         let time = format!(
             "{:02}{:02}{:02}.{:02}",
             tod_c / 360_000,
@@ -423,8 +411,8 @@ pub fn write_nmea(records: &[GnssRecord], geoid_separation_m: f64) -> String {
         let date = format!("{day:02}{month:02}{:02}", year.rem_euclid(100));
         match &r.fix {
             Some(fix) => {
-                let lat = format_angle(fix.position.lat_deg, 2, 'N', 'S');
-                let lon = format_angle(fix.position.lon_deg, 3, 'E', 'W');
+                let lat = format_angle(fix.position.lat_deg, 2, MINUTE_DECIMALS, 'N', 'S');
+                let lon = format_angle(fix.position.lon_deg, 3, MINUTE_DECIMALS, 'E', 'W');
                 let course = r.heading_deg.map_or(String::new(), |h| format!("{h:.1}"));
                 push_sentence(
                     &mut out,
@@ -478,8 +466,10 @@ mod tests {
         let text = format!("${rmc}*{:02X}\n${body}*47\n", checksum(rmc));
         let (r, s) = read_nmea(&text);
         assert_eq!((r.len(), s.used, s.skipped()), (1, 2, 0));
-        let expected =
-            days_from_civil(1994, 3, 23) as f64 * DAY_S + 12.0 * 3600.0 + 35.0 * 60.0 + 19.0;
+        let expected = days_from_date(1994, 3, 23).unwrap() as f64 * DAY_S
+            + 12.0 * 3600.0
+            + 35.0 * 60.0
+            + 19.0;
         assert_eq!(r[0].time_s, expected);
         let p = r[0].fix.unwrap().position;
         assert!((p.lat_deg - (48.0 + 7.038 / 60.0)).abs() < 1e-12);
@@ -577,7 +567,7 @@ mod tests {
     #[test]
     fn midnight_rollover_in_either_order() {
         // 23:59:59.80 on 31 Dec 2025 then 00:00:00.00 on 1 Jan 2026.
-        let midnight = days_from_civil(2026, 1, 1) as f64 * DAY_S;
+        let midnight = days_from_date(2026, 1, 1).unwrap() as f64 * DAY_S;
         let records = vec![
             GnssRecord {
                 time_s: midnight - 0.2,
@@ -617,13 +607,27 @@ mod tests {
     }
 
     #[test]
-    fn civil_days_round_trip() {
-        for days in [-719_468, -1, 0, 59, 10_957, 20_454, 30_000] {
-            let (y, m, d) = civil_from_days(days);
-            assert_eq!(days_from_civil(y, m, d), days);
-        }
-        assert_eq!(days_from_civil(2000, 3, 1), 11_017);
-        assert_eq!(civil_from_days(0), (1970, 1, 1));
+    fn an_rmc_date_that_does_not_exist_is_invalid_not_the_next_month() {
+        // 31 February 2022 once became 3 March 2022.
+        let text = "$GPRMC,123519,A,4807.038,N,01131.000,E,022.4,084.4,310222,003.1,W*6A\r\n";
+        let body = &text[1..text.find('*').unwrap()];
+        let text = format!("${body}*{:02X}\r\n", checksum(body));
+        let (records, stats) = read_nmea(&text);
+        assert!(records.is_empty(), "{records:?}");
+        assert_eq!(stats.skipped(), 1);
+        assert!(
+            stats
+                .messages
+                .iter()
+                .any(|m| m.contains("date `310222` is not ddmmyy")),
+            "{:?}",
+            stats.messages
+        );
+        // The same sentence on 28 February is read.
+        let good = text.replace("310222", "280222");
+        let body = &good[1..good.find('*').unwrap()];
+        let good = format!("${body}*{:02X}\r\n", checksum(body));
+        assert_eq!(read_nmea(&good).1.skipped(), 0);
     }
 
     #[test]

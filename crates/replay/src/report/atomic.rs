@@ -4,7 +4,7 @@ use super::ReportError;
 use std::path::Path;
 
 /// Writes `bytes` to `path` atomically: the bytes go to a hidden temporary file in the same
-/// directory (`.NAME.tmp-PID-N`), are flushed to disk, and the file is renamed over `path`.
+/// directory (`.NAME.tmp-PID-XXXXXXXX`), are flushed to disk, and the file is renamed over `path`.
 /// A reader sees either the old file whole or the new one whole; on failure the temporary
 /// file is removed and an existing `path` is left untouched.
 ///

@@ -57,7 +57,7 @@ mod nmea;
 mod plot;
 mod stats;
 mod text;
-mod time;
+pub(crate) mod time;
 mod tracks;
 
 pub use atomic::write_atomic;

@@ -3,7 +3,7 @@
 use super::FrameRecord;
 use super::derived::{finite, wrap_deg};
 use super::time::utc_fields;
-use std::fmt::Write;
+use crate::drive::nmea::{checksum, format_angle, push_sentence};
 use vgps_geometry::geo::{Geodetic, LocalFrame};
 
 /// The talker identifier of every sentence (`GP`: understood by every consumer).
@@ -32,36 +32,14 @@ pub const GGA_QUALITY_ESTIMATED: u8 = 6;
 /// assert_eq!(nmea_checksum("GPHDT,274.07,T"), "03");
 /// ```
 pub fn nmea_checksum(body: &str) -> String {
-    let x = body.bytes().fold(0u8, |a, b| a ^ b);
-    format!("{x:02X}")
-}
-
-fn sentence(out: &mut String, body: &str) {
-    let _ = writeln!(out, "${body}*{}\r", nmea_checksum(body));
-}
-
-/// `ddmm.mmmmmm,N` or `dddmm.mmmmmm,E` (hemisphere letter included).
-fn angle(deg: f64, degree_digits: usize, pos: char, neg: char) -> String {
-    let hemi = if deg < 0.0 { neg } else { pos };
-    let scale = 10f64.powi(MINUTE_DECIMALS as i32);
-    // Round in units of 1e-6 minute first so that 59.9999999' carries into the degrees.
-    let ticks = (deg.abs() * 60.0 * scale).round() as u64;
-    let per_degree = 60 * scale as u64;
-    let d = ticks / per_degree;
-    let rem = ticks % per_degree;
-    let m_int = rem / scale as u64;
-    let m_frac = rem % scale as u64;
-    format!(
-        "{d:0degree_digits$}{m_int:02}.{m_frac:0MINUTE_DECIMALS$},{hemi}",
-        degree_digits = degree_digits
-    )
+    format!("{:02X}", checksum(body))
 }
 
 fn position(g: &Geodetic) -> String {
     format!(
         "{},{}",
-        angle(g.lat_deg, 2, 'N', 'S'),
-        angle(g.lon_deg, 3, 'E', 'W')
+        format_angle(g.lat_deg, 2, MINUTE_DECIMALS, 'N', 'S'),
+        format_angle(g.lon_deg, 3, MINUTE_DECIMALS, 'E', 'W')
     )
 }
 
@@ -107,7 +85,7 @@ pub fn fixes_nmea(records: &[FrameRecord]) -> String {
                 };
                 let sats = (v.n_landmarks + v.n_surrogates).min(99);
                 let sigma_h = finite(v.sigma_e_m.hypot(v.sigma_n_m));
-                sentence(
+                push_sentence(
                     &mut out,
                     &format!(
                         "{NMEA_TALKER}GGA,{hms},{},{quality},{sats:02},{},{},M,0.0,M,,",
@@ -126,7 +104,7 @@ pub fn fixes_nmea(records: &[FrameRecord]) -> String {
                     _ => (None, None),
                 };
                 let mode = if v.is_surrogate_only() { 'E' } else { 'A' };
-                sentence(
+                push_sentence(
                     &mut out,
                     &format!(
                         "{NMEA_TALKER}RMC,{hms},A,{},{},{},{date},,,{mode}",
@@ -135,7 +113,7 @@ pub fn fixes_nmea(records: &[FrameRecord]) -> String {
                         num(course, 2),
                     ),
                 );
-                sentence(
+                push_sentence(
                     &mut out,
                     &format!(
                         "{NMEA_TALKER}GST,{hms},,,,,{},{},{}",
@@ -145,7 +123,7 @@ pub fn fixes_nmea(records: &[FrameRecord]) -> String {
                     ),
                 );
                 if let Some(h) = finite(v.heading_deg) {
-                    sentence(
+                    push_sentence(
                         &mut out,
                         &format!("{NMEA_TALKER}HDT,{:.2},T", h.rem_euclid(360.0)),
                     );
@@ -153,11 +131,11 @@ pub fn fixes_nmea(records: &[FrameRecord]) -> String {
                 previous = Some((r.time_s, g));
             }
             None => {
-                sentence(
+                push_sentence(
                     &mut out,
                     &format!("{NMEA_TALKER}GGA,{hms},,,,,0,00,,,M,,M,,"),
                 );
-                sentence(
+                push_sentence(
                     &mut out,
                     &format!("{NMEA_TALKER}RMC,{hms},V,,,,,,,{date},,,N"),
                 );
@@ -173,9 +151,18 @@ mod tests {
 
     #[test]
     fn angles_carry_and_hemispheres() {
-        assert_eq!(angle(48.5, 2, 'N', 'S'), "4830.000000,N");
-        assert_eq!(angle(-11.25, 3, 'E', 'W'), "01115.000000,W");
+        assert_eq!(
+            format_angle(48.5, 2, MINUTE_DECIMALS, 'N', 'S'),
+            "4830.000000,N"
+        );
+        assert_eq!(
+            format_angle(-11.25, 3, MINUTE_DECIMALS, 'E', 'W'),
+            "01115.000000,W"
+        );
         // 59.9999999' rounds into the next degree.
-        assert_eq!(angle(1.0 - 1e-10, 2, 'N', 'S'), "0100.000000,N");
+        assert_eq!(
+            format_angle(1.0 - 1e-10, 2, MINUTE_DECIMALS, 'N', 'S'),
+            "0100.000000,N"
+        );
     }
 }

@@ -3,21 +3,29 @@
 /// Seconds per day.
 const SECONDS_PER_DAY: i64 = 86_400;
 
-/// The civil date `(year, month 1–12, day 1–31)` of a day count since 1970-01-01.
-///
-/// H. Hinnant's `civil_from_days` algorithm (exact for every `i64` day in range of the
-/// proleptic Gregorian calendar).
-pub(crate) fn civil_from_days(days: i64) -> (i64, u32, u32) {
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z.rem_euclid(146_097); // [0, 146096]
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365; // [0, 399]
-    let y = yoe + era * 400;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100); // [0, 365]
-    let mp = (5 * doy + 2) / 153; // [0, 11]
-    let d = (doy - (153 * mp + 2) / 5 + 1) as u32; // [1, 31]
-    let m = if mp < 10 { mp + 3 } else { mp - 9 } as u32; // [1, 12]
-    (if m <= 2 { y + 1 } else { y }, m, d)
+/// The Julian day number of 1970-01-01.
+const UNIX_EPOCH_JULIAN_DAY: i64 = 2_440_588;
+
+/// Days since 1970-01-01 of a proleptic Gregorian date; `None` for a date that does not
+/// exist (month 13, 31 February, …) or lies beyond the `time` crate's ±999,999 years.
+pub(crate) fn days_from_date(year: i64, month: u32, day: u32) -> Option<i64> {
+    let month = time::Month::try_from(u8::try_from(month).ok()?).ok()?;
+    let date =
+        time::Date::from_calendar_date(i32::try_from(year).ok()?, month, u8::try_from(day).ok()?)
+            .ok()?;
+    Some(i64::from(date.to_julian_day()) - UNIX_EPOCH_JULIAN_DAY)
+}
+
+/// The civil date `(year, month 1–12, day 1–31)` of a day count since 1970-01-01; `None`
+/// beyond the `time` crate's ±999,999 years.
+pub(crate) fn date_from_days(days: i64) -> Option<(i64, u32, u32)> {
+    let julian = i32::try_from(days.checked_add(UNIX_EPOCH_JULIAN_DAY)?).ok()?;
+    let date = time::Date::from_julian_day(julian).ok()?;
+    Some((
+        i64::from(date.year()),
+        u32::from(u8::from(date.month())),
+        u32::from(date.day()),
+    ))
 }
 
 /// A UTC time split into calendar fields, rounded to `10^-decimals` s.
@@ -47,7 +55,7 @@ pub(crate) fn utc_fields(time_s: f64, decimals: u32) -> Option<UtcTime> {
     let fraction = ticks.rem_euclid(scale) as u64;
     let days = secs.div_euclid(SECONDS_PER_DAY);
     let sod = secs.rem_euclid(SECONDS_PER_DAY);
-    let (year, month, day) = civil_from_days(days);
+    let (year, month, day) = date_from_days(days)?;
     Some(UtcTime {
         year,
         month,
@@ -86,11 +94,21 @@ mod tests {
 
     #[test]
     fn known_dates() {
-        assert_eq!(civil_from_days(0), (1970, 1, 1));
-        assert_eq!(civil_from_days(-1), (1969, 12, 31));
+        assert_eq!(date_from_days(0), Some((1970, 1, 1)));
+        assert_eq!(date_from_days(-1), Some((1969, 12, 31)));
         // 2000-02-29 is day 11016; 2024-03-01 is day 19783.
-        assert_eq!(civil_from_days(11_016), (2000, 2, 29));
-        assert_eq!(civil_from_days(19_783), (2024, 3, 1));
+        assert_eq!(date_from_days(11_016), Some((2000, 2, 29)));
+        assert_eq!(date_from_days(19_783), Some((2024, 3, 1)));
+        for days in [-719_468, -1, 0, 59, 10_957, 20_454, 30_000] {
+            let (y, m, d) = date_from_days(days).unwrap();
+            assert_eq!(days_from_date(y, m, d), Some(days));
+        }
+        assert_eq!(days_from_date(2000, 3, 1), Some(11_017));
+        // Dates that do not exist.
+        assert_eq!(days_from_date(2022, 2, 31), None);
+        assert_eq!(days_from_date(2023, 2, 29), None);
+        assert_eq!(days_from_date(2022, 4, 31), None);
+        assert_eq!(days_from_date(2022, 13, 1), None);
         // Rounding carries into the next day.
         let t = utc_fields(86_399.996, 2).unwrap();
         assert_eq!(
