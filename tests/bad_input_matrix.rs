@@ -939,7 +939,7 @@ fn rows() -> Vec<Row> {
             ],
             code: 0,
             stderr: &[
-                "frame 0: {t}/d/images/000000_4.png: not a PNG file",
+                "frame 0: {t}/d/images/000000_4.png: not a PNG, JPEG, TIFF or BMP file (camera 4)",
                 "frame 1: {t}/d/images/000001_2.png",
                 "frame 2: {t}/d/images/000002_3.png",
             ],

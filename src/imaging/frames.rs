@@ -7,7 +7,7 @@
 //! be used — a missing file, a non-PNG or corrupt file, a frame of the wrong size — so that
 //! a run can report it and go on with the next frame.
 
-use super::{DecodeLimits, ImagingError, LampDetector, check_dimensions, read_png};
+use super::{DecodeLimits, ImagingError, LampDetector, check_dimensions, read_image};
 use crate::calibration::Rig;
 use crate::drive::{Detection, Frame};
 use std::path::Path;
@@ -53,7 +53,11 @@ impl ImageProblemKind {
     pub fn of(error: &ImagingError) -> Self {
         match error {
             ImagingError::Io { .. } => Self::Missing,
-            ImagingError::NotPng { .. } | ImagingError::Decode { .. } => Self::Unreadable,
+            ImagingError::NotPng { .. }
+            | ImagingError::NotAnImage { .. }
+            | ImagingError::Corrupt { .. }
+            | ImagingError::Unsupported { .. }
+            | ImagingError::Decode { .. } => Self::Unreadable,
             ImagingError::TooLarge { .. } | ImagingError::WrongDimensions { .. } => Self::WrongSize,
             ImagingError::TooManyRuns { .. }
             | ImagingError::MaskDimensions { .. }
@@ -151,7 +155,7 @@ pub fn detect_frame_images(
         };
         let path = drive_dir.join(name);
         let limits = DecodeLimits::for_camera(&rig_camera.model);
-        let decoded = read_png(&path, &limits)
+        let decoded = read_image(&path, &limits)
             .and_then(|img| check_dimensions(&img, &rig_camera.model, &path).map(|()| img))
             .and_then(|img| detector.detect(&img, None));
         match decoded {
@@ -168,7 +172,7 @@ pub fn detect_frame_images(
             Err(e) => result.problems.push(ImageProblem {
                 camera,
                 kind: ImageProblemKind::of(&e),
-                message: e.to_string(),
+                message: format!("{e} (camera {camera})"),
             }),
         }
     }

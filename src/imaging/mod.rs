@@ -39,14 +39,18 @@
 
 pub mod decode;
 pub mod detect;
+pub mod formats;
 pub mod frames;
 pub mod render;
+pub mod street;
 
 pub use decode::{DecodeLimits, check_dimensions, decode_png, read_png};
 pub use detect::{
     CentroidWeight, Detections, DetectorConfig, LampDetection, LampDetector, Mask, Threshold,
 };
+pub use formats::{ImageFormat, decode_image, decode_image_named, read_image};
 pub use frames::{FrameImageResult, ImageProblem, ImageProblemKind, detect_frame_images};
+pub use street::{LampClass, StreetDetection, StreetDetections, StreetLampDetector};
 pub use render::{
     LightSource, RenderOptions, RenderedFrame, RenderedSpot, Renderer, SpotKind, encode_png,
     render_camera,
@@ -71,6 +75,33 @@ pub enum ImagingError {
     NotPng {
         /// The file (or `<memory>`).
         path: PathBuf,
+    },
+    /// The bytes are none of the formats [`decode_image`] reads (PNG, JPEG, TIFF, BMP).
+    #[error("{path}: not a PNG, JPEG, TIFF or BMP file")]
+    NotAnImage {
+        /// The file (or `<memory>`).
+        path: PathBuf,
+    },
+    /// A JPEG, TIFF or BMP file that is truncated or corrupt.
+    #[error("{path}: cannot decode {format}: {message}")]
+    Corrupt {
+        /// The file (or `<memory>`).
+        path: PathBuf,
+        /// The format (`JPEG`, `TIFF`, `BMP`).
+        format: &'static str,
+        /// What is wrong.
+        message: String,
+    },
+    /// A valid file of a kind the decoder does not read (a CMYK or 12-bit JPEG, a TIFF
+    /// compression the codec lacks).
+    #[error("{path}: unsupported {format}: {message}")]
+    Unsupported {
+        /// The file (or `<memory>`).
+        path: PathBuf,
+        /// The format (`JPEG`, `TIFF`, `BMP`).
+        format: &'static str,
+        /// What is not supported.
+        message: String,
     },
     /// The PNG header declares an image larger than the limits allow.
     #[error(
