@@ -43,13 +43,18 @@ pub const CORE_FRACTION: f64 = 0.92;
 /// barely above its background has no lamp.
 pub const MIN_CORE_CONTRAST_DN: f64 = 40.0;
 
-/// A core within this many radii (of the larger core) of a larger core's centre is part of
-/// its bloom or star-burst and is merged into it (unitless; bloom around a saturated head
+/// A core within this many radii (of the larger core) of a larger core's bounding box is part
+/// of its bloom or star-burst and is merged into it (unitless; bloom around a saturated head
 /// reaches 2–3 core radii on the labelled photos).
 pub const HALO_RADII: f64 = 3.0;
 
 /// Smallest merge distance (px): JPEG ringing splits tiny cores into neighbouring pieces.
 pub const MIN_HALO_PX: f64 = 3.0;
+
+/// A core near a larger one is merged only when the light between them never falls below
+/// this fraction of the core level (unitless): a bloom fragment or a star-burst spike is
+/// joined to its lamp by bright halo, two distinct lamps have darker sky between them.
+pub const BRIDGE_FRACTION: f64 = 0.7;
 
 /// Inner radius of the local-background annulus (core radii), beyond most of the bloom.
 pub const ANNULUS_INNER_RADII: f64 = 3.0;
@@ -62,11 +67,11 @@ pub const MIN_ANNULUS_PX: (f64, f64) = (4.0, 8.0);
 
 /// Smallest contrast of a core's peak over its local background, as a fraction of the
 /// peak (unitless): a bright patch of a bright facade is not a lamp.
-pub const MIN_LOCAL_CONTRAST: f64 = 0.3;
+pub const MIN_LOCAL_CONTRAST: f64 = 0.7;
 
 /// Largest major/minor axis ratio of a lamp head's core (unitless): heads are round or
 /// short ellipses; light trails and lit edges are longer.
-pub const MAX_ELONGATION: f64 = 3.0;
+pub const MAX_ELONGATION: f64 = 2.0;
 
 /// Fill ratio (area / bounding-box area) above which a core is rectangular (a disc fills
 /// π/4 ≈ 0.785 of its box, a rectangle 1).
@@ -271,8 +276,10 @@ impl StreetLampDetector {
                 if cores[j].merged {
                     continue;
                 }
-                let (du, dv) = (cores[j].d.u - cores[i].d.u, cores[j].d.v - cores[i].d.v);
-                if du.hypot(dv) <= reach {
+                if box_distance(&cores[i].d.bbox, cores[j].d.u, cores[j].d.v) <= reach
+                    && bridge_min(image, (cores[i].d.u, cores[i].d.v), (cores[j].d.u, cores[j].d.v))
+                        >= BRIDGE_FRACTION * level
+                {
                     cores[j].merged = true;
                     cores[i].d.area += cores[j].d.area;
                     cores[i].d.peak = cores[i].d.peak.max(cores[j].d.peak);
@@ -395,6 +402,27 @@ impl StreetLampDetector {
         }
         LampClass::Lamp
     }
+}
+
+/// Distance (px) from `(u, v)` to the pixel box `[u0, v0, u1, v1]` (0 inside).
+fn box_distance(bbox: &[u32; 4], u: f64, v: f64) -> f64 {
+    let gap = |x: f64, lo: u32, hi: u32| (f64::from(lo) - x).max(x - f64::from(hi)).max(0.0);
+    gap(u, bbox[0], bbox[2]).hypot(gap(v, bbox[1], bbox[3]))
+}
+
+/// The smallest value on the segment from `a` to `b` (sampled every pixel).
+fn bridge_min(image: &GrayImage, a: (f64, f64), b: (f64, f64)) -> f64 {
+    let steps = (b.0 - a.0).hypot(b.1 - a.1).ceil().max(1.0) as usize;
+    let mut low = f64::INFINITY;
+    for k in 0..=steps {
+        let t = k as f64 / steps as f64;
+        let (x, y) = (a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1));
+        let (x, y) = (x.round(), y.round());
+        if x >= 0.0 && y >= 0.0 && x < f64::from(image.width()) && y < f64::from(image.height()) {
+            low = low.min(f64::from(image.get_pixel(x as u32, y as u32)[0]));
+        }
+    }
+    low
 }
 
 /// The median of the image (DN), from a histogram of every 8th row.
