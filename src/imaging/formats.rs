@@ -272,6 +272,55 @@ pub fn jpeg_frame_header(bytes: &[u8]) -> Option<JpegFrameHeader> {
     }
 }
 
+/// The width and height of a TIFF's first image, read from its first IFD (tags 256 and
+/// 257, SHORT or LONG, either byte order); `None` when the data ends or is malformed first.
+///
+/// ```
+/// use vgps::imaging::formats::tiff_dimensions;
+/// // Little-endian header, IFD at 8 with two entries: width 640 (SHORT), height 480 (LONG).
+/// let mut b = b"II*\0\x08\0\0\0\x02\0".to_vec();
+/// b.extend([0, 1, 3, 0, 1, 0, 0, 0, 0x80, 2, 0, 0]);
+/// b.extend([1, 1, 4, 0, 1, 0, 0, 0, 0xE0, 1, 0, 0]);
+/// assert_eq!(tiff_dimensions(&b), Some((640, 480)));
+/// ```
+pub fn tiff_dimensions(bytes: &[u8]) -> Option<(u32, u32)> {
+    let little = match bytes.get(..4)? {
+        b"II*\0" => true,
+        b"MM\0*" => false,
+        _ => return None,
+    };
+    let u16_at = |at: usize| -> Option<u16> {
+        let b = [*bytes.get(at)?, *bytes.get(at + 1)?];
+        Some(if little { u16::from_le_bytes(b) } else { u16::from_be_bytes(b) })
+    };
+    let u32_at = |at: usize| -> Option<u32> {
+        let b = [
+            *bytes.get(at)?,
+            *bytes.get(at + 1)?,
+            *bytes.get(at + 2)?,
+            *bytes.get(at + 3)?,
+        ];
+        Some(if little { u32::from_le_bytes(b) } else { u32::from_be_bytes(b) })
+    };
+    let ifd = usize::try_from(u32_at(4)?).ok()?;
+    let entries = usize::from(u16_at(ifd)?);
+    let (mut width, mut height) = (None, None);
+    for k in 0..entries {
+        let e = ifd.checked_add(2 + 12 * k)?;
+        let value = match u16_at(e + 2)? {
+            3 => u32::from(u16_at(e + 8)?),
+            4 => u32_at(e + 8)?,
+            _ => continue,
+        };
+        match u16_at(e)? {
+            256 => width = Some(value),
+            257 => height = Some(value),
+            _ => {}
+        }
+    }
+    Some((width?, height?))
+}
+
 fn decode_jpeg(bytes: &[u8], limits: &DecodeLimits, path: &Path) -> Result<GrayImage, ImagingError> {
     const F: ImageFormat = ImageFormat::Jpeg;
     let Some(header) = jpeg_frame_header(bytes) else {
@@ -358,6 +407,11 @@ fn decode_with_image(
         image::ImageError::Limits(l) => corrupt(path, format, format!("over the limits: {l}")),
         other => corrupt(path, format, other.to_string()),
     };
+    if format == ImageFormat::Tiff
+        && let Some((w, h)) = tiff_dimensions(bytes)
+    {
+        check_limits(path, w.into(), h.into(), limits)?;
+    }
     let image = match format {
         ImageFormat::Tiff => {
             let mut decoder =
@@ -384,7 +438,7 @@ fn decode_with_image(
 /// ```
 /// use vgps::imaging::formats::scale16;
 /// assert_eq!((scale16(0), scale16(128), scale16(0x8000), scale16(65535)), (0, 0, 128, 255));
-/// assert_eq!(scale16(0x80FF), 129); // the high byte alone would be 128
+/// assert_eq!(scale16(0x01FE), 2); // the high byte alone would be 1
 /// ```
 pub fn scale16(v: u16) -> u8 {
     ((u32::from(v) * 255 + 32767) / 65535) as u8
