@@ -15,16 +15,18 @@
 //!    DN). Cores are the 8-connected components above it (the run-length labelling of
 //!    [`super::LampDetector`]); each gives its core centroid, area, peak and shape.
 //! 2. **One detection per lamp**: a core lying within the bloom of a larger one
-//!    (`HALO_RADII` core radii from its centre) is a fragment of that lamp's halo or
-//!    star-burst spikes, and is merged into it.
+//!    (`HALO_RADII` core radii from its bounding box) is a fragment of that lamp's halo or
+//!    star-burst spikes, and is merged into it, when the light between them stays above
+//!    `BRIDGE_FRACTION` of the core level or the core is under `1/FRAGMENT_AREA_RATIO` of
+//!    the larger one's area.
 //! 3. **Plausibility**: a core must stand out from its local background, the median of an
 //!    annulus from `ANNULUS_INNER_RADII` to `ANNULUS_OUTER_RADII` core radii: its peak at
 //!    least `MIN_LOCAL_CONTRAST` of itself above it. A core longer than `MAX_ELONGATION`
 //!    (a light trail, a lit edge) is not a lamp head.
 //! 4. **Classes** ([`LampClass`]): lit **windows** (cores filling their bounding box like a
 //!    rectangle, aligned with at least `WINDOW_GRID_MIN` others of similar size in a row or
-//!    a column), specular **reflections** (a vertically stretched core below a brighter core
-//!    in the same column), **vehicle** lights (two similar cores side by side below the
+//!    a column), specular **reflections** (a vertically stretched core, however long, below
+//!    a compact core in the same column), **vehicle** lights (two similar cores side by side below the
 //!    horizon, when the horizon row is known) and lens **ghosts** (a faint core
 //!    point-symmetric to a much brighter one about the principal point).
 //!
@@ -55,6 +57,12 @@ pub const MIN_HALO_PX: f64 = 3.0;
 /// this fraction of the core level (unitless): a bloom fragment or a star-burst spike is
 /// joined to its lamp by bright halo, two distinct lamps have darker sky between them.
 pub const BRIDGE_FRACTION: f64 = 0.7;
+
+/// A core with at most 1/this of the area of a larger core whose bloom holds it is a
+/// fragment of that lamp (a broken star-burst spike, a JPEG-split piece of halo) whatever
+/// lies between them (unitless): a distinct lamp that small beside a large one cannot be
+/// told from a fragment at this resolution.
+pub const FRAGMENT_AREA_RATIO: f64 = 8.0;
 
 /// Inner radius of the local-background annulus (core radii), beyond most of the bloom.
 pub const ANNULUS_INNER_RADII: f64 = 3.0;
@@ -90,7 +98,7 @@ pub const SIMILAR_SIZE: f64 = 2.0;
 /// Elongation above which a vertically oriented core below a brighter one is a reflection.
 pub const REFLECTION_ELONGATION: f64 = 1.6;
 
-/// Largest column offset (core radii of the brighter core) of a reflection below its lamp.
+/// Largest column offset (core radii of the lamp) of a reflection below it.
 pub const REFLECTION_COLUMN_RADII: f64 = 1.5;
 
 /// A ghost's strength is at most this fraction of its lamp's (unitless).
@@ -271,14 +279,22 @@ impl StreetLampDetector {
             if cores[i].merged {
                 continue;
             }
-            let reach = (HALO_RADII * cores[i].radius).max(MIN_HALO_PX);
+            // The bloom scales with the core's width: its minor radius √(area / (π · e)).
+            let minor = cores[i].radius / cores[i].d.elongation.max(1.0).sqrt();
+            let reach = (HALO_RADII * minor).max(MIN_HALO_PX);
             for j in i + 1..cores.len() {
                 if cores[j].merged {
                     continue;
                 }
+                let fragment = f64::from(cores[i].d.area)
+                    >= FRAGMENT_AREA_RATIO * f64::from(cores[j].d.area);
                 if box_distance(&cores[i].d.bbox, cores[j].d.u, cores[j].d.v) <= reach
-                    && bridge_min(image, (cores[i].d.u, cores[i].d.v), (cores[j].d.u, cores[j].d.v))
-                        >= BRIDGE_FRACTION * level
+                    && (fragment
+                        || bridge_min(
+                            image,
+                            (cores[i].d.u, cores[i].d.v),
+                            (cores[j].d.u, cores[j].d.v),
+                        ) >= BRIDGE_FRACTION * level)
                 {
                     cores[j].merged = true;
                     cores[i].d.area += cores[j].d.area;
@@ -292,9 +308,7 @@ impl StreetLampDetector {
         for c in cores.iter().filter(|c| !c.merged) {
             let background = annulus_median(image, c.d.u, c.d.v, c.radius);
             let peak = f64::from(c.d.peak);
-            if !(peak - background >= MIN_LOCAL_CONTRAST * peak)
-                || !(c.d.elongation <= MAX_ELONGATION)
-            {
+            if !(peak - background >= MIN_LOCAL_CONTRAST * peak) {
                 rejected += 1;
                 continue;
             }
@@ -316,15 +330,17 @@ impl StreetLampDetector {
         let principal = self
             .principal_point
             .unwrap_or((f64::from(w.saturating_sub(1)) / 2.0, f64::from(h.saturating_sub(1)) / 2.0));
-        let classes: Vec<LampClass> = (0..kept.len())
+        let classes: Vec<Option<LampClass>> = (0..kept.len())
             .map(|i| self.classify(i, &kept, &shapes, principal))
             .collect();
+        rejected += classes.iter().filter(|c| c.is_none()).count();
         let mut out = StreetDetections {
             rejected,
             core_level: threshold.saturating_add(1),
             ..StreetDetections::default()
         };
         for (mut d, class) in kept.into_iter().zip(classes) {
+            let Some(class) = class else { continue };
             d.class = class;
             if class == LampClass::Lamp {
                 out.lamps.push(d);
@@ -338,26 +354,49 @@ impl StreetLampDetector {
         Ok(out)
     }
 
+    /// The class of core `i`, or `None` for a core too long to be a lamp head that is no
+    /// reflection either.
     fn classify(
         &self,
         i: usize,
         kept: &[StreetDetection],
         shapes: &[Core],
         principal: (f64, f64),
-    ) -> LampClass {
+    ) -> Option<LampClass> {
         let me = &kept[i];
+        let compact = |k: usize| kept[k].elongation <= MAX_ELONGATION;
         let similar = |a: &StreetDetection, b: &StreetDetection| {
             let ratio = a.radius_px.max(b.radius_px) / a.radius_px.min(b.radius_px).max(0.5);
             ratio <= SIMILAR_SIZE
         };
+        // Reflection: stretched vertically, below a lamp-like core in the same column (a
+        // wet road's reflection may be larger than the lamp head itself).
+        if shapes[i].vertical
+            && me.elongation >= REFLECTION_ELONGATION
+            && (0..kept.len()).any(|k| {
+                let o = &kept[k];
+                k != i
+                    && compact(k)
+                    && o.v < me.v
+                    && (o.u - me.u).abs() <= REFLECTION_COLUMN_RADII * o.radius_px.max(1.0)
+            })
+        {
+            return Some(LampClass::Reflection);
+        }
+        if !compact(i) {
+            return None;
+        }
         // Ghost: a faint core at the point reflection of a much stronger one.
         let mirror = (2.0 * principal.0 - me.u, 2.0 * principal.1 - me.v);
-        if kept.iter().any(|o| {
-            o.strength > 0.0
+        if (0..kept.len()).any(|k| {
+            let o = &kept[k];
+            k != i
+                && compact(k)
+                && o.strength > 0.0
                 && me.strength < GHOST_STRENGTH_RATIO * o.strength
                 && (o.u - mirror.0).hypot(o.v - mirror.1) <= GHOST_TOLERANCE_PX + o.radius_px
         }) {
-            return LampClass::Ghost;
+            return Some(LampClass::Ghost);
         }
         // Window: rectangular and aligned with similar rectangular cores.
         let rectangular =
@@ -372,35 +411,26 @@ impl StreetLampDetector {
                 })
                 .count();
             if aligned >= WINDOW_GRID_MIN {
-                return LampClass::Window;
+                return Some(LampClass::Window);
             }
-        }
-        // Reflection: stretched vertically, below a brighter core in the same column.
-        if shapes[i].vertical
-            && me.elongation >= REFLECTION_ELONGATION
-            && kept.iter().any(|o| {
-                o.v < me.v
-                    && o.strength > me.strength
-                    && (o.u - me.u).abs() <= REFLECTION_COLUMN_RADII * o.radius_px.max(1.0)
-            })
-        {
-            return LampClass::Reflection;
         }
         // Vehicle: a pair of similar cores side by side, below the horizon.
         if let Some(horizon) = self.horizon_v
             && me.v > horizon
-            && kept.iter().enumerate().any(|(k, o)| {
+            && (0..kept.len()).any(|k| {
+                let o = &kept[k];
                 let r = me.radius_px.max(o.radius_px).max(1.0);
                 k != i
+                    && compact(k)
                     && o.v > horizon
                     && similar(me, o)
                     && (o.v - me.v).abs() <= VEHICLE_ROW_RADII * r
                     && (o.u - me.u).abs() <= VEHICLE_PAIR_RADII * r
             })
         {
-            return LampClass::Vehicle;
+            return Some(LampClass::Vehicle);
         }
-        LampClass::Lamp
+        Some(LampClass::Lamp)
     }
 }
 
