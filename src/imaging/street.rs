@@ -193,8 +193,8 @@ pub struct StreetDetections {
 /// // A lamp (saturated disc, radius 3 px) with a dim halo on a textured street.
 /// let image = image::GrayImage::from_fn(120, 90, |x, y| {
 ///     let d2 = (x as f64 - 60.0).powi(2) + (y as f64 - 30.0).powi(2);
-///     let texture = ((x * 7 + y * 13) % 23) as f64 * 3.0;
-///     let halo = 150.0 * (-d2 / 200.0).exp();
+///     let texture = ((x * 7 + y * 13) % 23) as f64 * 2.0;
+///     let halo = 150.0 * (-d2 / 50.0).exp();
 ///     image::Luma([if d2 <= 9.0 { 255 } else { (texture + halo).min(200.0) as u8 }])
 /// });
 /// let found = StreetLampDetector::default().detect(&image)?;
