@@ -477,9 +477,18 @@ fn image_decode(data: &[u8]) {
         assert!(image.height() <= PNG_LIMITS.max_height);
         if let Ok(found) = StreetLampDetector::default().detect(&image) {
             for d in found.lamps.iter().chain(&found.others) {
-                assert!(d.u >= -0.5 && d.u <= f64::from(image.width()) - 0.5, "{d:?}");
-                assert!(d.v >= -0.5 && d.v <= f64::from(image.height()) - 0.5, "{d:?}");
-                assert!(d.strength.is_finite() && d.elongation >= 1.0 - 1e-9, "{d:?}");
+                assert!(
+                    d.u >= -0.5 && d.u <= f64::from(image.width()) - 0.5,
+                    "{d:?}"
+                );
+                assert!(
+                    d.v >= -0.5 && d.v <= f64::from(image.height()) - 0.5,
+                    "{d:?}"
+                );
+                assert!(
+                    d.strength.is_finite() && d.elongation >= 1.0 - 1e-9,
+                    "{d:?}"
+                );
             }
         }
     }

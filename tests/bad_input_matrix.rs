@@ -980,7 +980,12 @@ fn rows() -> Vec<Row> {
         },
         Row {
             name: "detect: truncated JPEG",
-            setup: |t| replace_image(t, "jpg", |g| { let b = jpeg_of(g); b[..b.len() / 2].to_vec() }),
+            setup: |t| {
+                replace_image(t, "jpg", |g| {
+                    let b = jpeg_of(g);
+                    b[..b.len() / 2].to_vec()
+                })
+            },
             args: &[
                 "detect",
                 "{t}/d",
@@ -991,7 +996,10 @@ fn rows() -> Vec<Row> {
                 "{t}/det.csv",
             ],
             code: 0,
-            stderr: &["frame 0: {t}/d/images/000000_0.jpg: cannot decode JPEG", "(camera 0)"],
+            stderr: &[
+                "frame 0: {t}/d/images/000000_0.jpg: cannot decode JPEG",
+                "(camera 0)",
+            ],
         },
         Row {
             name: "detect: CMYK JPEG (four components)",
@@ -1006,7 +1014,10 @@ fn rows() -> Vec<Row> {
                 "{t}/det.csv",
             ],
             code: 0,
-            stderr: &["frame 0: {t}/d/images/000000_0.jpg: unsupported JPEG", "CMYK"],
+            stderr: &[
+                "frame 0: {t}/d/images/000000_0.jpg: unsupported JPEG",
+                "CMYK",
+            ],
         },
         Row {
             name: "detect: 12-bit JPEG",
@@ -1021,11 +1032,18 @@ fn rows() -> Vec<Row> {
                 "{t}/det.csv",
             ],
             code: 0,
-            stderr: &["frame 0: {t}/d/images/000000_0.jpg: unsupported JPEG", "12-bit"],
+            stderr: &[
+                "frame 0: {t}/d/images/000000_0.jpg: unsupported JPEG",
+                "12-bit",
+            ],
         },
         Row {
             name: "detect: JPEG header claiming 65535×65535 (4.3·10⁹ pixels)",
-            setup: |t| replace_image(t, "jpg", |g| patched_jpeg(g, |h| h[1..5].copy_from_slice(&[0xFF; 4]))),
+            setup: |t| {
+                replace_image(t, "jpg", |g| {
+                    patched_jpeg(g, |h| h[1..5].copy_from_slice(&[0xFF; 4]))
+                })
+            },
             args: &[
                 "detect",
                 "{t}/d",
@@ -1040,7 +1058,11 @@ fn rows() -> Vec<Row> {
         },
         Row {
             name: "detect: JPEG of the wrong size for its camera",
-            setup: |t| replace_image(t, "jpg", |g| jpeg_of(&image::imageops::crop_imm(g, 0, 0, 512, 384).to_image())),
+            setup: |t| {
+                replace_image(t, "jpg", |g| {
+                    jpeg_of(&image::imageops::crop_imm(g, 0, 0, 512, 384).to_image())
+                })
+            },
             args: &[
                 "detect",
                 "{t}/d",
@@ -1051,11 +1073,37 @@ fn rows() -> Vec<Row> {
                 "{t}/det.csv",
             ],
             code: 0,
-            stderr: &["frame 0: {t}/d/images/000000_0.jpg", "512×384", "(camera 0)"],
+            stderr: &[
+                "frame 0: {t}/d/images/000000_0.jpg",
+                "512×384",
+                "(camera 0)",
+            ],
         },
         Row {
             name: "detect: TIFF with an unsupported compression",
-            setup: |t| replace_image(t, "tif", |g| { let mut c = std::io::Cursor::new(Vec::new()); image::ImageEncoder::write_image(image::codecs::tiff::TiffEncoder::new(&mut c), g.as_raw(), g.width(), g.height(), image::ExtendedColorType::L8).expect("tiff"); let mut b = c.into_inner(); let ifd = u32::from_le_bytes([b[4], b[5], b[6], b[7]]) as usize; let n = u16::from_le_bytes([b[ifd], b[ifd + 1]]) as usize; for k in 0..n { let e = ifd + 2 + 12 * k; if b[e..e + 2] == [3, 1] { b[e + 8..e + 10].copy_from_slice(&34712u16.to_le_bytes()); } } b }),
+            setup: |t| {
+                replace_image(t, "tif", |g| {
+                    let mut c = std::io::Cursor::new(Vec::new());
+                    image::ImageEncoder::write_image(
+                        image::codecs::tiff::TiffEncoder::new(&mut c),
+                        g.as_raw(),
+                        g.width(),
+                        g.height(),
+                        image::ExtendedColorType::L8,
+                    )
+                    .expect("tiff");
+                    let mut b = c.into_inner();
+                    let ifd = u32::from_le_bytes([b[4], b[5], b[6], b[7]]) as usize;
+                    let n = u16::from_le_bytes([b[ifd], b[ifd + 1]]) as usize;
+                    for k in 0..n {
+                        let e = ifd + 2 + 12 * k;
+                        if b[e..e + 2] == [3, 1] {
+                            b[e + 8..e + 10].copy_from_slice(&34712u16.to_le_bytes());
+                        }
+                    }
+                    b
+                })
+            },
             args: &[
                 "detect",
                 "{t}/d",

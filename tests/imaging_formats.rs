@@ -95,7 +95,9 @@ fn png_tiff_bmp_give_the_same_luminance() {
     let rgb = gradient();
     let expected: Vec<u8> = rgb
         .pixels()
-        .map(|p| ((77 * u32::from(p[0]) + 150 * u32::from(p[1]) + 29 * u32::from(p[2]) + 128) >> 8) as u8)
+        .map(|p| {
+            ((77 * u32::from(p[0]) + 150 * u32::from(p[1]) + 29 * u32::from(p[2]) + 128) >> 8) as u8
+        })
         .collect();
     let mut png = Vec::new();
     image::codecs::png::PngEncoder::new(&mut png)
@@ -136,7 +138,10 @@ fn sixteen_bit_png_and_tiff_are_scaled_not_truncated() {
         assert_eq!(grey.as_raw(), &expected, "{name}");
     }
     // 16-bit colour: Rec. 601 luma of the 16-bit values, then scaled.
-    let rgb16: Vec<u8> = [0xFFFFu16, 0, 0].iter().flat_map(|v| v.to_ne_bytes()).collect();
+    let rgb16: Vec<u8> = [0xFFFFu16, 0, 0]
+        .iter()
+        .flat_map(|v| v.to_ne_bytes())
+        .collect();
     let mut tiff = std::io::Cursor::new(Vec::new());
     image::codecs::tiff::TiffEncoder::new(&mut tiff)
         .write_image(&rgb16, 1, 1, image::ExtendedColorType::Rgb16)
@@ -159,7 +164,12 @@ fn real_photo_decodes_with_its_size() {
 }
 
 /// Replaces the JPEG frame header's fields (precision, height, width, components).
-fn patch_sof(bytes: &mut [u8], precision: Option<u8>, size: Option<(u16, u16)>, components: Option<u8>) {
+fn patch_sof(
+    bytes: &mut [u8],
+    precision: Option<u8>,
+    size: Option<(u16, u16)>,
+    components: Option<u8>,
+) {
     let at = (2..bytes.len() - 1)
         .find(|&i| bytes[i] == 0xFF && bytes[i + 1] == 0xC0)
         .expect("SOF0");
@@ -190,18 +200,31 @@ fn bad_jpegs_are_typed_errors() {
     let mut b = good.clone();
     patch_sof(&mut b, Some(12), None, None);
     let e = decode_image(&b, &limits()).expect_err("12 bit");
-    assert!(matches!(e, ImagingError::Unsupported { .. }) && e.to_string().contains("12-bit"), "{e}");
+    assert!(
+        matches!(e, ImagingError::Unsupported { .. }) && e.to_string().contains("12-bit"),
+        "{e}"
+    );
     // CMYK (four components).
     let mut b = good.clone();
     patch_sof(&mut b, None, None, Some(4));
     let e = decode_image(&b, &limits()).expect_err("cmyk");
-    assert!(matches!(e, ImagingError::Unsupported { .. }) && e.to_string().contains("CMYK"), "{e}");
+    assert!(
+        matches!(e, ImagingError::Unsupported { .. }) && e.to_string().contains("CMYK"),
+        "{e}"
+    );
     // A header claiming 65535 × 65535 = 4.3·10⁹ pixels: refused from the header.
     let mut b = good.clone();
     patch_sof(&mut b, None, Some((65535, 65535)), None);
     let e = decode_image(&b, &limits()).expect_err("huge");
     assert!(
-        matches!(e, ImagingError::TooLarge { width: 65535, height: 65535, .. }),
+        matches!(
+            e,
+            ImagingError::TooLarge {
+                width: 65535,
+                height: 65535,
+                ..
+            }
+        ),
         "{e}"
     );
     // Errors name the file.
@@ -251,19 +274,32 @@ fn bad_tiffs_are_typed_errors() {
     let mut b = good.clone();
     patch_tiff_tag(&mut b, 259, 34712);
     let e = decode_image(&b, &limits()).expect_err("compression");
-    assert!(matches!(e, ImagingError::Unsupported { format: "TIFF", .. }), "{e}");
+    assert!(
+        matches!(e, ImagingError::Unsupported { format: "TIFF", .. }),
+        "{e}"
+    );
     // A header claiming 65536 × 65536 pixels.
     let mut b = good.clone();
     patch_tiff_tag(&mut b, 256, 65000);
     patch_tiff_tag(&mut b, 257, 65000);
     let e = decode_image(&b, &limits()).expect_err("huge");
     assert!(
-        matches!(e, ImagingError::TooLarge { width: 65000, height: 65000, .. }),
+        matches!(
+            e,
+            ImagingError::TooLarge {
+                width: 65000,
+                height: 65000,
+                ..
+            }
+        ),
         "{e}"
     );
     // Truncated.
     let e = decode_image(&good[..good.len() / 2], &limits()).expect_err("truncated");
-    assert!(matches!(e, ImagingError::Corrupt { format: "TIFF", .. }), "{e}");
+    assert!(
+        matches!(e, ImagingError::Corrupt { format: "TIFF", .. }),
+        "{e}"
+    );
 }
 
 #[test]

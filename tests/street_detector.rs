@@ -23,7 +23,11 @@ fn add_lamp(image: &mut GrayImage, u: f64, v: f64, radius: f64) {
             let d = (x as f64 - u).hypot(y as f64 - v);
             let p = image.get_pixel_mut(x as u32, y as u32);
             let halo = 160.0 * (-(d * d) / (8.0 * radius * radius)).exp();
-            let value = if d <= radius { 255.0 } else { f64::from(p[0]) + halo };
+            let value = if d <= radius {
+                255.0
+            } else {
+                f64::from(p[0]) + halo
+            };
             p[0] = value.min(255.0).max(f64::from(p[0])) as u8;
         }
     }
@@ -59,7 +63,9 @@ fn labelled_real_photo_meets_recall_and_precision() {
         })
         .collect();
     assert_eq!(lamps.len(), 13);
-    let found = StreetLampDetector::default().detect(&image).expect("detect");
+    let found = StreetLampDetector::default()
+        .detect(&image)
+        .expect("detect");
     let reach = |r: f64| (1.5 * r).max(3.0);
     let certain = lamps.iter().filter(|l| l.3).count();
     let hit = lamps
@@ -128,12 +134,20 @@ fn one_detection_per_bloomed_lamp_at_its_core() {
             image.put_pixel(60 - k, 41, Luma([255]));
         }
     }
-    let found = StreetLampDetector::default().detect(&image).expect("detect");
+    let found = StreetLampDetector::default()
+        .detect(&image)
+        .expect("detect");
     assert_eq!(found.lamps.len(), 2, "{:?}", found.lamps);
     let a = found.lamps.iter().find(|d| d.u < 100.0).expect("first");
-    assert!((a.u - 60.3).abs() < 0.5 && (a.v - 40.6).abs() < 0.5, "{a:?}");
+    assert!(
+        (a.u - 60.3).abs() < 0.5 && (a.v - 40.6).abs() < 0.5,
+        "{a:?}"
+    );
     let b = found.lamps.iter().find(|d| d.u > 100.0).expect("second");
-    assert!((b.u - 140.0).abs() < 0.3 && (b.v - 50.0).abs() < 0.3, "{b:?}");
+    assert!(
+        (b.u - 140.0).abs() < 0.3 && (b.v - 50.0).abs() < 0.3,
+        "{b:?}"
+    );
     assert!(a.strength > b.strength && b.strength > 0.0);
     assert!(found.lamps.iter().all(|d| d.class == LampClass::Lamp));
 }
@@ -143,7 +157,9 @@ fn two_close_lamps_with_sky_between_stay_two() {
     let mut image = street(120, 80);
     add_lamp(&mut image, 50.0, 40.0, 2.0);
     add_lamp(&mut image, 62.0, 40.0, 3.0);
-    let found = StreetLampDetector::default().detect(&image).expect("detect");
+    let found = StreetLampDetector::default()
+        .detect(&image)
+        .expect("detect");
     assert_eq!(found.lamps.len(), 2, "{:?}", found.lamps);
 }
 
@@ -158,7 +174,9 @@ fn lit_window_grid_is_labelled_windows() {
         }
     }
     add_lamp(&mut image, 180.0, 40.0, 3.0);
-    let found = StreetLampDetector::default().detect(&image).expect("detect");
+    let found = StreetLampDetector::default()
+        .detect(&image)
+        .expect("detect");
     assert_eq!(found.lamps.len(), 1, "{:?}", found.lamps);
     assert!((found.lamps[0].u - 180.0).abs() < 0.3);
     let windows = found
@@ -175,7 +193,9 @@ fn road_reflection_below_a_lamp_is_labelled() {
     add_lamp(&mut image, 80.0, 40.0, 4.0);
     // A vertical streak on the wet road below the lamp, 3 px wide and 24 px tall.
     fill(&mut image, 79, 140, 81, 163, 245);
-    let found = StreetLampDetector::default().detect(&image).expect("detect");
+    let found = StreetLampDetector::default()
+        .detect(&image)
+        .expect("detect");
     assert_eq!(found.lamps.len(), 1, "{:?}", found.lamps);
     assert_eq!(found.others.len(), 1, "{:?}", found.others);
     assert_eq!(found.others[0].class, LampClass::Reflection);
@@ -188,7 +208,9 @@ fn lens_ghost_opposite_a_bright_lamp_is_labelled() {
     add_lamp(&mut image, 40.0, 30.0, 6.0);
     // Point reflection of (40, 30) about the centre (99.5, 74.5): (159, 119); a faint core.
     fill(&mut image, 158, 118, 159, 119, 240);
-    let found = StreetLampDetector::default().detect(&image).expect("detect");
+    let found = StreetLampDetector::default()
+        .detect(&image)
+        .expect("detect");
     assert_eq!(found.lamps.len(), 1, "{:?}", found.lamps);
     assert_eq!(found.others.len(), 1, "{:?}", found.others);
     assert_eq!(found.others[0].class, LampClass::Ghost);
@@ -196,7 +218,9 @@ fn lens_ghost_opposite_a_bright_lamp_is_labelled() {
     let mut alone = street(w, h);
     add_lamp(&mut alone, 40.0, 120.0, 6.0);
     fill(&mut alone, 158, 118, 159, 119, 240);
-    let found = StreetLampDetector::default().detect(&alone).expect("detect");
+    let found = StreetLampDetector::default()
+        .detect(&alone)
+        .expect("detect");
     assert_eq!(found.lamps.len(), 2, "{:?}", found);
 }
 
@@ -222,7 +246,9 @@ fn vehicle_pair_below_the_horizon_is_labelled() {
         2
     );
     // Without a horizon nothing is called a vehicle.
-    let found = StreetLampDetector::default().detect(&image).expect("detect");
+    let found = StreetLampDetector::default()
+        .detect(&image)
+        .expect("detect");
     assert_eq!(found.lamps.len(), 3);
 }
 
@@ -234,7 +260,9 @@ fn light_trails_and_bright_facades_are_not_lamps() {
     // A lit facade: 60 × 40 px at 200 DN with a brighter 2 × 2 spot (low local contrast).
     fill(&mut image, 120, 10, 179, 49, 200);
     fill(&mut image, 150, 30, 151, 31, 250);
-    let found = StreetLampDetector::default().detect(&image).expect("detect");
+    let found = StreetLampDetector::default()
+        .detect(&image)
+        .expect("detect");
     assert!(found.lamps.is_empty(), "{:?}", found.lamps);
     assert!(found.rejected >= 2);
 }

@@ -291,7 +291,11 @@ pub fn tiff_dimensions(bytes: &[u8]) -> Option<(u32, u32)> {
     };
     let u16_at = |at: usize| -> Option<u16> {
         let b = [*bytes.get(at)?, *bytes.get(at + 1)?];
-        Some(if little { u16::from_le_bytes(b) } else { u16::from_be_bytes(b) })
+        Some(if little {
+            u16::from_le_bytes(b)
+        } else {
+            u16::from_be_bytes(b)
+        })
     };
     let u32_at = |at: usize| -> Option<u32> {
         let b = [
@@ -300,7 +304,11 @@ pub fn tiff_dimensions(bytes: &[u8]) -> Option<(u32, u32)> {
             *bytes.get(at + 2)?,
             *bytes.get(at + 3)?,
         ];
-        Some(if little { u32::from_le_bytes(b) } else { u32::from_be_bytes(b) })
+        Some(if little {
+            u32::from_le_bytes(b)
+        } else {
+            u32::from_be_bytes(b)
+        })
     };
     let ifd = usize::try_from(u32_at(4)?).ok()?;
     let entries = usize::from(u16_at(ifd)?);
@@ -321,10 +329,18 @@ pub fn tiff_dimensions(bytes: &[u8]) -> Option<(u32, u32)> {
     Some((width?, height?))
 }
 
-fn decode_jpeg(bytes: &[u8], limits: &DecodeLimits, path: &Path) -> Result<GrayImage, ImagingError> {
+fn decode_jpeg(
+    bytes: &[u8],
+    limits: &DecodeLimits,
+    path: &Path,
+) -> Result<GrayImage, ImagingError> {
     const F: ImageFormat = ImageFormat::Jpeg;
     let Some(header) = jpeg_frame_header(bytes) else {
-        return Err(corrupt(path, F, "no frame header (truncated or not a JPEG)"));
+        return Err(corrupt(
+            path,
+            F,
+            "no frame header (truncated or not a JPEG)",
+        ));
     };
     match header.marker {
         0xC0..=0xC2 => {}
@@ -336,7 +352,10 @@ fn decode_jpeg(bytes: &[u8], limits: &DecodeLimits, path: &Path) -> Result<GrayI
         return Err(unsupported(
             path,
             F,
-            format!("{}-bit samples (only 8-bit JPEG is decoded)", header.precision),
+            format!(
+                "{}-bit samples (only 8-bit JPEG is decoded)",
+                header.precision
+            ),
         ));
     }
     match header.components {
@@ -445,7 +464,9 @@ pub fn scale16(v: u16) -> u8 {
 }
 
 fn luma601_8(r: u8, g: u8, b: u8) -> u8 {
-    ((LUMA601_8[0] * u32::from(r) + LUMA601_8[1] * u32::from(g) + LUMA601_8[2] * u32::from(b)
+    ((LUMA601_8[0] * u32::from(r)
+        + LUMA601_8[1] * u32::from(g)
+        + LUMA601_8[2] * u32::from(b)
         + 128)
         >> 8) as u8
 }

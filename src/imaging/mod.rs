@@ -50,11 +50,11 @@ pub use detect::{
 };
 pub use formats::{ImageFormat, decode_image, decode_image_named, read_image};
 pub use frames::{FrameImageResult, ImageProblem, ImageProblemKind, detect_frame_images};
-pub use street::{LampClass, StreetDetection, StreetDetections, StreetLampDetector};
 pub use render::{
     LightSource, RenderOptions, RenderedFrame, RenderedSpot, Renderer, SpotKind, encode_png,
     render_camera,
 };
+pub use street::{LampClass, StreetDetection, StreetDetections, StreetLampDetector};
 
 use std::path::PathBuf;
 use thiserror::Error;

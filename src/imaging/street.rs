@@ -274,7 +274,7 @@ impl StreetLampDetector {
             })
             .collect();
         // Largest first: fragments merge into the largest core whose bloom holds them.
-        cores.sort_by(|a, b| b.d.area.cmp(&a.d.area));
+        cores.sort_by_key(|c| std::cmp::Reverse(c.d.area));
         for i in 0..cores.len() {
             if cores[i].merged {
                 continue;
@@ -286,8 +286,8 @@ impl StreetLampDetector {
                 if cores[j].merged {
                     continue;
                 }
-                let fragment = f64::from(cores[i].d.area)
-                    >= FRAGMENT_AREA_RATIO * f64::from(cores[j].d.area);
+                let fragment =
+                    f64::from(cores[i].d.area) >= FRAGMENT_AREA_RATIO * f64::from(cores[j].d.area);
                 if box_distance(&cores[i].d.bbox, cores[j].d.u, cores[j].d.v) <= reach
                     && (fragment
                         || bridge_min(
@@ -312,8 +312,7 @@ impl StreetLampDetector {
                 rejected += 1;
                 continue;
             }
-            let strength =
-                c.d.strength + (found.background_dn - background) * f64::from(c.d.area);
+            let strength = c.d.strength + (found.background_dn - background) * f64::from(c.d.area);
             kept.push(StreetDetection {
                 u: c.d.u,
                 v: c.d.v,
@@ -327,9 +326,10 @@ impl StreetLampDetector {
             });
             shapes.push(*c);
         }
-        let principal = self
-            .principal_point
-            .unwrap_or((f64::from(w.saturating_sub(1)) / 2.0, f64::from(h.saturating_sub(1)) / 2.0));
+        let principal = self.principal_point.unwrap_or((
+            f64::from(w.saturating_sub(1)) / 2.0,
+            f64::from(h.saturating_sub(1)) / 2.0,
+        ));
         let classes: Vec<Option<LampClass>> = (0..kept.len())
             .map(|i| self.classify(i, &kept, &shapes, principal))
             .collect();
@@ -349,8 +349,10 @@ impl StreetLampDetector {
             }
         }
         // Raster order of the centroids, as the renderer's detector.
-        out.lamps.sort_by(|a, b| a.v.total_cmp(&b.v).then(a.u.total_cmp(&b.u)));
-        out.others.sort_by(|a, b| a.v.total_cmp(&b.v).then(a.u.total_cmp(&b.u)));
+        out.lamps
+            .sort_by(|a, b| a.v.total_cmp(&b.v).then(a.u.total_cmp(&b.u)));
+        out.others
+            .sort_by(|a, b| a.v.total_cmp(&b.v).then(a.u.total_cmp(&b.u)));
         Ok(out)
     }
 
