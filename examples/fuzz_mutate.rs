@@ -13,6 +13,9 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::Path;
 use std::time::Instant;
 
+/// Leading bytes (the format's signature) left alone by 15 of 16 mutations.
+const KEEP: usize = 4;
+
 struct Rng(u64);
 
 impl Rng {
@@ -35,12 +38,14 @@ fn mutate(rng: &mut Rng, data: &mut Vec<u8>) {
             data.push(rng.next() as u8);
             continue;
         }
-        let i = rng.below(data.len());
+        // Keep the 4-byte signature most of the time, so mutants reach the decoder.
+        let keep = if data.len() > KEEP && rng.below(16) != 0 { KEEP } else { 0 };
+        let i = keep + rng.below(data.len() - keep);
         match rng.below(7) {
             0 => data[i] = rng.next() as u8,
             1 => data[i] ^= 1 << rng.below(8),
             2 => data[i] = [0, 0xFF, 0x7F, 0x80][rng.below(4)],
-            3 => data.truncate(i.max(1)),
+            3 => data.truncate(i.max(keep + 1)),
             4 => {
                 let len = rng.below(64).min(data.len() - i);
                 let run: Vec<u8> = data[i..i + len].to_vec();
