@@ -7,9 +7,14 @@
 //!   its fast PNG encoding ([`encode_png`]).
 //! - [`decode`]: PNG decoding with size limits and a dimension check against the
 //!   calibration ([`decode_png`], [`read_png`], [`check_dimensions`]).
+//! - [`formats`]: PNG, JPEG, TIFF and BMP decoding to Rec. 601 luminance within the same
+//!   limits ([`decode_image`], [`read_image`]).
 //! - [`detect`]: the lamp detector — adaptive threshold, run-length connected components
 //!   (8-connectivity), background-subtracted intensity-weighted sub-pixel centroids, area and
 //!   shape limits, per-camera masks ([`LampDetector`], [`Mask`]).
+//! - [`street`]: the lamp detector for real night streets — bright cores against their
+//!   local background, one detection per bloomed lamp, windows, reflections, vehicle lights
+//!   and lens ghosts labelled ([`StreetLampDetector`]).
 //!
 //! # Conventions
 //! Pixels `(u, v)` = (column, row), integer coordinates are pixel centres, `(0, 0)` is the
