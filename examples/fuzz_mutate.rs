@@ -39,7 +39,11 @@ fn mutate(rng: &mut Rng, data: &mut Vec<u8>) {
             continue;
         }
         // Keep the 4-byte signature most of the time, so mutants reach the decoder.
-        let keep = if data.len() > KEEP && rng.below(16) != 0 { KEEP } else { 0 };
+        let keep = if data.len() > KEEP && rng.below(16) != 0 {
+            KEEP
+        } else {
+            0
+        };
         let i = keep + rng.below(data.len() - keep);
         match rng.below(7) {
             0 => data[i] = rng.next() as u8,
