@@ -85,6 +85,40 @@ fn fixture_text(name: &str) -> String {
     std::fs::read_to_string(fixture(name)).expect("fixture")
 }
 
+/// Replaces camera 0's image of frame 0 by `images/000000_0.<ext>` holding the bytes
+/// `make` builds from that frame's decoded image, and names it in `frames.csv`.
+fn replace_image(t: &Path, ext: &str, make: fn(&image::GrayImage) -> Vec<u8>) {
+    let d = drive(t);
+    let png = d.join("images/000000_0.png");
+    let grey = vgps::imaging::read_image(&png, &vgps::imaging::DecodeLimits::default())
+        .expect("drive image");
+    std::fs::write(d.join(format!("images/000000_0.{ext}")), make(&grey)).expect("write");
+    let frames = std::fs::read_to_string(d.join("frames.csv")).expect("frames");
+    let renamed = frames.replace("images/000000_0.png", &format!("images/000000_0.{ext}"));
+    assert_ne!(frames, renamed);
+    std::fs::write(d.join("frames.csv"), renamed).expect("write");
+}
+
+/// A colour JPEG (quality 90) of `grey`.
+fn jpeg_of(grey: &image::GrayImage) -> Vec<u8> {
+    let rgb = image::DynamicImage::ImageLuma8(grey.clone()).to_rgb8();
+    let mut bytes = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, 90)
+        .encode_image(&rgb)
+        .expect("jpeg");
+    bytes
+}
+
+/// A JPEG of `grey` whose baseline frame header is patched by `patch(header_bytes)`.
+fn patched_jpeg(grey: &image::GrayImage, patch: fn(&mut [u8])) -> Vec<u8> {
+    let mut b = jpeg_of(grey);
+    let at = (2..b.len() - 1)
+        .find(|&i| b[i] == 0xFF && b[i + 1] == 0xC0)
+        .expect("SOF0");
+    patch(&mut b[at + 4..at + 10]);
+    b
+}
+
 /// Deterministic binary garbage (invalid UTF-8 on its first line).
 fn garbage() -> Vec<u8> {
     (0..2000u32).map(|i| ((i * 37 + 128) % 256) as u8).collect()
@@ -939,10 +973,148 @@ fn rows() -> Vec<Row> {
             ],
             code: 0,
             stderr: &[
-                "frame 0: {t}/d/images/000000_4.png: not a PNG file",
+                "frame 0: {t}/d/images/000000_4.png: not a PNG, JPEG, TIFF or BMP file (camera 4)",
                 "frame 1: {t}/d/images/000001_2.png",
                 "frame 2: {t}/d/images/000002_3.png",
             ],
+        },
+        Row {
+            name: "detect: truncated JPEG",
+            setup: |t| {
+                replace_image(t, "jpg", |g| {
+                    let b = jpeg_of(g);
+                    b[..b.len() / 2].to_vec()
+                })
+            },
+            args: &[
+                "detect",
+                "{t}/d",
+                "--quiet",
+                "--threads",
+                "1",
+                "--out",
+                "{t}/det.csv",
+            ],
+            code: 0,
+            stderr: &[
+                "frame 0: {t}/d/images/000000_0.jpg: cannot decode JPEG",
+                "(camera 0)",
+            ],
+        },
+        Row {
+            name: "detect: CMYK JPEG (four components)",
+            setup: |t| replace_image(t, "jpg", |g| patched_jpeg(g, |h| h[5] = 4)),
+            args: &[
+                "detect",
+                "{t}/d",
+                "--quiet",
+                "--threads",
+                "1",
+                "--out",
+                "{t}/det.csv",
+            ],
+            code: 0,
+            stderr: &[
+                "frame 0: {t}/d/images/000000_0.jpg: unsupported JPEG",
+                "CMYK",
+            ],
+        },
+        Row {
+            name: "detect: 12-bit JPEG",
+            setup: |t| replace_image(t, "jpg", |g| patched_jpeg(g, |h| h[0] = 12)),
+            args: &[
+                "detect",
+                "{t}/d",
+                "--quiet",
+                "--threads",
+                "1",
+                "--out",
+                "{t}/det.csv",
+            ],
+            code: 0,
+            stderr: &[
+                "frame 0: {t}/d/images/000000_0.jpg: unsupported JPEG",
+                "12-bit",
+            ],
+        },
+        Row {
+            name: "detect: JPEG header claiming 65535×65535 (4.3·10⁹ pixels)",
+            setup: |t| {
+                replace_image(t, "jpg", |g| {
+                    patched_jpeg(g, |h| h[1..5].copy_from_slice(&[0xFF; 4]))
+                })
+            },
+            args: &[
+                "detect",
+                "{t}/d",
+                "--quiet",
+                "--threads",
+                "1",
+                "--out",
+                "{t}/det.csv",
+            ],
+            code: 0,
+            stderr: &["frame 0: {t}/d/images/000000_0.jpg", "65535×65535"],
+        },
+        Row {
+            name: "detect: JPEG of the wrong size for its camera",
+            setup: |t| {
+                replace_image(t, "jpg", |g| {
+                    jpeg_of(&image::imageops::crop_imm(g, 0, 0, 512, 384).to_image())
+                })
+            },
+            args: &[
+                "detect",
+                "{t}/d",
+                "--quiet",
+                "--threads",
+                "1",
+                "--out",
+                "{t}/det.csv",
+            ],
+            code: 0,
+            stderr: &[
+                "frame 0: {t}/d/images/000000_0.jpg",
+                "512×384",
+                "(camera 0)",
+            ],
+        },
+        Row {
+            name: "detect: TIFF with an unsupported compression",
+            setup: |t| {
+                replace_image(t, "tif", |g| {
+                    let mut c = std::io::Cursor::new(Vec::new());
+                    image::ImageEncoder::write_image(
+                        image::codecs::tiff::TiffEncoder::new(&mut c),
+                        g.as_raw(),
+                        g.width(),
+                        g.height(),
+                        image::ExtendedColorType::L8,
+                    )
+                    .expect("tiff");
+                    let mut b = c.into_inner();
+                    let ifd = u32::from_le_bytes([b[4], b[5], b[6], b[7]]) as usize;
+                    let n = u16::from_le_bytes([b[ifd], b[ifd + 1]]) as usize;
+                    for k in 0..n {
+                        let e = ifd + 2 + 12 * k;
+                        if b[e..e + 2] == [3, 1] {
+                            b[e + 8..e + 10].copy_from_slice(&34712u16.to_le_bytes());
+                        }
+                    }
+                    b
+                })
+            },
+            args: &[
+                "detect",
+                "{t}/d",
+                "--quiet",
+                "--threads",
+                "1",
+                "--out",
+                "{t}/det.csv",
+            ],
+            code: 0,
+            stderr: &["frame 0: {t}/d/images/000000_0.tif: unsupported TIFF"],
         },
         Row {
             name: "detect: an image path that is a directory",

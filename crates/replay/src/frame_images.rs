@@ -10,7 +10,9 @@
 use crate::drive::{Detection, Frame};
 use std::path::Path;
 use vgps_camera::calibration::Rig;
-use vgps_camera::imaging::{DecodeLimits, ImagingError, LampDetector, check_dimensions, read_png};
+use vgps_camera::imaging::{
+    DecodeLimits, ImagingError, LampDetector, check_dimensions, read_image,
+};
 
 /// Why one image of a frame gave no detections.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -53,7 +55,11 @@ impl ImageProblemKind {
     pub fn of(error: &ImagingError) -> Self {
         match error {
             ImagingError::Io { .. } => Self::Missing,
-            ImagingError::NotPng { .. } | ImagingError::Decode { .. } => Self::Unreadable,
+            ImagingError::NotPng { .. }
+            | ImagingError::NotAnImage { .. }
+            | ImagingError::Corrupt { .. }
+            | ImagingError::Unsupported { .. }
+            | ImagingError::Decode { .. } => Self::Unreadable,
             ImagingError::TooLarge { .. } | ImagingError::WrongDimensions { .. } => Self::WrongSize,
             ImagingError::TooManyRuns { .. }
             | ImagingError::MaskDimensions { .. }
@@ -152,7 +158,7 @@ pub fn detect_frame_images(
         };
         let path = drive_dir.join(name);
         let limits = DecodeLimits::for_camera(&rig_camera.model);
-        let decoded = read_png(&path, &limits)
+        let decoded = read_image(&path, &limits)
             .and_then(|img| check_dimensions(&img, &rig_camera.model, &path).map(|()| img))
             .and_then(|img| detector.detect(&img, None));
         match decoded {
@@ -169,7 +175,7 @@ pub fn detect_frame_images(
             Err(e) => result.problems.push(ImageProblem {
                 camera,
                 kind: ImageProblemKind::of(&e),
-                message: e.to_string(),
+                message: format!("{e} (camera {camera})"),
             }),
         }
     }

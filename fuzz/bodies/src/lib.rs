@@ -22,7 +22,8 @@ use vgps_camera::calibration::formats::{ladybug_ini, native, nclt};
 use vgps_camera::calibration::{
     Camera, CameraModel, Lut, Rig, TabulatedPinhole, TabulatedPinholeParams,
 };
-use vgps_camera::imaging::{DecodeLimits, decode_png};
+use vgps_camera::imaging::formats::jpeg_frame_header;
+use vgps_camera::imaging::{DecodeLimits, StreetLampDetector, decode_image, decode_png};
 use vgps_core::matcher::{
     DbLandmark, Detection, LandmarkDb, MatchOptions, MatchStatus, SearchArea, match_detections,
 };
@@ -473,6 +474,48 @@ pub fn png_decode(data: &[u8]) {
     }
 }
 
+/// The common body of the image-decoder targets: [`decode_image`] within [`PNG_LIMITS`],
+/// the size of an `Ok` image within the limits, and the night-street detector run on it
+/// (its detections finite and inside the image).
+fn image_decode(data: &[u8]) {
+    if let Ok(image) = decode_image(data, &PNG_LIMITS) {
+        assert!(image.width() <= PNG_LIMITS.max_width);
+        assert!(image.height() <= PNG_LIMITS.max_height);
+        if let Ok(found) = StreetLampDetector::default().detect(&image) {
+            for d in found.lamps.iter().chain(&found.others) {
+                assert!(
+                    d.u >= -0.5 && d.u <= f64::from(image.width()) - 0.5,
+                    "{d:?}"
+                );
+                assert!(
+                    d.v >= -0.5 && d.v <= f64::from(image.height()) - 0.5,
+                    "{d:?}"
+                );
+                assert!(
+                    d.strength.is_finite() && d.elongation >= 1.0 - 1e-9,
+                    "{d:?}"
+                );
+            }
+        }
+    }
+}
+
+/// Target `jpeg_decode`: JPEG bytes through [`image_decode`], and the frame-header walk.
+pub fn jpeg_decode(data: &[u8]) {
+    let _ = jpeg_frame_header(data);
+    image_decode(data);
+}
+
+/// Target `tiff_decode`: TIFF bytes through [`image_decode`].
+pub fn tiff_decode(data: &[u8]) {
+    image_decode(data);
+}
+
+/// Target `bmp_decode`: BMP bytes through [`image_decode`].
+pub fn bmp_decode(data: &[u8]) {
+    image_decode(data);
+}
+
 /// Three vectors.
 type Triple = [Vector3<f64>; 3];
 
@@ -686,6 +729,9 @@ pub const TARGETS: &[Target] = &[
     ("gpx", gpx),
     ("nclt_gps", nclt_gps),
     ("png_decode", png_decode),
+    ("jpeg_decode", jpeg_decode),
+    ("tiff_decode", tiff_decode),
+    ("bmp_decode", bmp_decode),
     ("p3p", p3p_lambda_twist),
     ("p3p_cosines", p3p_law_of_cosines),
     ("trilaterate", trilateration),

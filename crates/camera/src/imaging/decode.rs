@@ -59,7 +59,7 @@ impl DecodeLimits {
 }
 
 /// Decodes PNG bytes to an 8-bit grayscale image (other colour types and bit depths are
-/// converted: 16-bit to its high byte, colour to luma), within `limits`.
+/// converted: 16-bit scaled to 8 bits, colour to Rec. 601 luma: [`super::formats`]), within `limits`.
 ///
 /// Errors name `<memory>` as the file; [`read_png`] names the real file.
 ///
@@ -158,7 +158,8 @@ fn decode_named(
         });
     }
     let image = DynamicImage::from_decoder(decoder).map_err(decode_error)?;
-    Ok(image.into_luma8())
+    // Rec. 601 luminance, 16-bit scaled (not truncated): see `formats`.
+    Ok(super::formats::to_luma8(&image))
 }
 
 /// Encodes an 8-bit grayscale image as PNG with fast compression (the setting measured to

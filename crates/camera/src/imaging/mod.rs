@@ -5,9 +5,14 @@
 //! - [`decode`]: PNG decoding with size limits and a dimension check against the
 //!   calibration ([`decode_png`], [`read_png`], [`check_dimensions`]), and the fast PNG
 //!   encoding of rendered frames ([`encode_png`]).
+//! - [`formats`]: PNG, JPEG, TIFF and BMP decoding to Rec. 601 luminance within the same
+//!   limits ([`decode_image`], [`read_image`]).
 //! - [`detect`]: the lamp detector — adaptive threshold, run-length connected components
 //!   (8-connectivity), background-subtracted intensity-weighted sub-pixel centroids, area and
 //!   shape limits, per-camera masks ([`LampDetector`], [`Mask`]).
+//! - [`street`]: the lamp detector for real night streets — bright cores against their
+//!   local background, one detection per bloomed lamp, windows, reflections, vehicle lights
+//!   and lens ghosts labelled ([`StreetLampDetector`]).
 //!
 //! # Conventions
 //! Pixels `(u, v)` = (column, row), integer coordinates are pixel centres, `(0, 0)` is the
@@ -39,12 +44,16 @@
 pub mod decode;
 pub mod detect;
 mod detection;
+pub mod formats;
+pub mod street;
 
 pub use decode::{DecodeLimits, check_dimensions, decode_png, encode_png, read_png};
 pub use detect::{
     CentroidWeight, Detections, DetectorConfig, LampDetection, LampDetector, Mask, Threshold,
 };
 pub use detection::Detection;
+pub use formats::{ImageFormat, decode_image, decode_image_named, read_image};
+pub use street::{LampClass, StreetDetection, StreetDetections, StreetLampDetector};
 
 use std::path::PathBuf;
 use thiserror::Error;
@@ -65,6 +74,33 @@ pub enum ImagingError {
     NotPng {
         /// The file (or `<memory>`).
         path: PathBuf,
+    },
+    /// The bytes are none of the formats [`decode_image`] reads (PNG, JPEG, TIFF, BMP).
+    #[error("{path}: not a PNG, JPEG, TIFF or BMP file")]
+    NotAnImage {
+        /// The file (or `<memory>`).
+        path: PathBuf,
+    },
+    /// A JPEG, TIFF or BMP file that is truncated or corrupt.
+    #[error("{path}: cannot decode {format}: {message}")]
+    Corrupt {
+        /// The file (or `<memory>`).
+        path: PathBuf,
+        /// The format (`JPEG`, `TIFF`, `BMP`).
+        format: &'static str,
+        /// What is wrong.
+        message: String,
+    },
+    /// A valid file of a kind the decoder does not read (a CMYK or 12-bit JPEG, a TIFF
+    /// compression the codec lacks).
+    #[error("{path}: unsupported {format}: {message}")]
+    Unsupported {
+        /// The file (or `<memory>`).
+        path: PathBuf,
+        /// The format (`JPEG`, `TIFF`, `BMP`).
+        format: &'static str,
+        /// What is not supported.
+        message: String,
     },
     /// The PNG header declares an image larger than the limits allow.
     #[error(
