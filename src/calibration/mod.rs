@@ -45,6 +45,7 @@
 // `!(x < limit)` is used on purpose throughout: it rejects NaN along with out-of-range values.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+mod bspline;
 mod camera;
 mod equirectangular;
 pub mod formats;
@@ -52,8 +53,10 @@ mod kannala_brandt;
 mod lut;
 mod pinhole;
 mod rig;
+mod spline_pinhole;
 mod tabulated_pinhole;
 
+pub use bspline::{BSplineSurface, BSplineSurfaceParams};
 pub use camera::Camera;
 pub use equirectangular::*;
 pub use formats::{Format, LoadError, load, save_native};
@@ -61,6 +64,7 @@ pub use kannala_brandt::*;
 pub use lut::*;
 pub use pinhole::*;
 pub use rig::*;
+pub use spline_pinhole::*;
 pub use tabulated_pinhole::{
     DistortionTable, TABLE_INVERSE_RESIDUAL, TABLE_INVERSE_TOLERANCE, TabulatedPinhole,
     TabulatedPinholeParams,
