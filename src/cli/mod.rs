@@ -10,6 +10,7 @@
 
 pub mod args;
 pub mod calib;
+pub mod calib_file_info;
 pub mod demo;
 pub mod detect;
 pub mod gnss_input;

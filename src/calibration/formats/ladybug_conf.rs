@@ -527,11 +527,15 @@ fn parse_warp(
                 let mut values = ctx.floats(n, "Coefs", rest)?;
                 // The numbers follow on the next lines, up to the next key.
                 while let Some((m, l)) = cur.peek() {
-                    let starts_number = l
-                        .chars()
-                        .next()
-                        .is_some_and(|c| c.is_ascii_digit() || matches!(c, '-' | '+' | '.'));
-                    if !starts_number {
+                    // Every line up to the next key of the block holds coefficients (a
+                    // word such as `nan` there is a bad coefficient, not a key).
+                    let (first_token, _) = key_rest(l);
+                    let is_key = matches!(
+                        first_token,
+                        "Id" | "NumberKnots" | "KnotsX" | "KnotsY" | "NumberCoefs" | "Coefs"
+                    ) || first_token.starts_with("Begin")
+                        || first_token.starts_with("End");
+                    if is_key {
                         break;
                     }
                     values.extend(ctx.floats(m, "Coefs", l)?);
