@@ -13,10 +13,36 @@ use rand_chacha::ChaCha8Rng;
 use std::path::Path;
 
 const TOKENS: &[&str] = &[
-    "nan", "inf", "-inf", "1e308", "-1e308", "0", "-0", "1e-320", "4294967295", "99999999999",
-    "BeginWarp", "EndWarp", "BeginCamera", "EndCamera", "Id 0", "Coefs", "NumberCoefs 0 0",
-    "KnotsX 1 0", "Version \"Ladybug 2.0\"", "Resolution 0 0", "NumCameras 64", "=", ".", "#",
-    "\u{0}", "\u{feff}", "é", "rotation_dRx = 1e300", "camera0.rotX nan", "camera_model LD5P",
+    "nan",
+    "inf",
+    "-inf",
+    "1e308",
+    "-1e308",
+    "0",
+    "-0",
+    "1e-320",
+    "4294967295",
+    "99999999999",
+    "BeginWarp",
+    "EndWarp",
+    "BeginCamera",
+    "EndCamera",
+    "Id 0",
+    "Coefs",
+    "NumberCoefs 0 0",
+    "KnotsX 1 0",
+    "Version \"Ladybug 2.0\"",
+    "Resolution 0 0",
+    "NumCameras 64",
+    "=",
+    ".",
+    "#",
+    "\u{0}",
+    "\u{feff}",
+    "é",
+    "rotation_dRx = 1e300",
+    "camera0.rotX nan",
+    "camera_model LD5P",
 ];
 
 fn mutate(rng: &mut ChaCha8Rng, seed: &[u8]) -> Vec<u8> {
@@ -39,15 +65,27 @@ fn mutate(rng: &mut ChaCha8Rng, seed: &[u8]) -> Vec<u8> {
             }
             3 => {
                 // Replace the number (or word) at `at` by a token.
-                let start = data[..at].iter().rposition(|b| b.is_ascii_whitespace()).map_or(0, |p| p + 1);
-                let end = data[at..].iter().position(|b| b.is_ascii_whitespace()).map_or(data.len(), |p| at + p);
+                let start = data[..at]
+                    .iter()
+                    .rposition(|b| b.is_ascii_whitespace())
+                    .map_or(0, |p| p + 1);
+                let end = data[at..]
+                    .iter()
+                    .position(|b| b.is_ascii_whitespace())
+                    .map_or(data.len(), |p| at + p);
                 let t = TOKENS[rng.random_range(0..TOKENS.len())].as_bytes();
                 data.splice(start..end, t.iter().copied());
             }
             4 => {
                 // Delete or duplicate a whole line.
-                let start = data[..at].iter().rposition(|&b| b == b'\n').map_or(0, |p| p + 1);
-                let end = data[at..].iter().position(|&b| b == b'\n').map_or(data.len(), |p| at + p + 1);
+                let start = data[..at]
+                    .iter()
+                    .rposition(|&b| b == b'\n')
+                    .map_or(0, |p| p + 1);
+                let end = data[at..]
+                    .iter()
+                    .position(|&b| b == b'\n')
+                    .map_or(data.len(), |p| at + p + 1);
                 if rng.random() {
                     data.drain(start..end);
                 } else {
@@ -92,7 +130,10 @@ fn main() {
                 real_runs += 1;
             }
             conf_runs += 1;
-            (vgps::fuzzing::ladybug_conf, mutate(&mut rng, &conf_seeds[usize::from(real)]))
+            (
+                vgps::fuzzing::ladybug_conf,
+                mutate(&mut rng, &conf_seeds[usize::from(real)]),
+            )
         } else {
             ini_runs += 1;
             let s = &ini_seeds[rng.random_range(0..2)];

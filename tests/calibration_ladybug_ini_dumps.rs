@@ -18,7 +18,7 @@ fn cameras() -> Vec<[f64; 9]> {
             let (rx, ry) = if i == 5 {
                 (0.0, 0.0)
             } else {
-                (-1.5707963, 1.5707963)
+                (-std::f64::consts::FRAC_PI_2, std::f64::consts::FRAC_PI_2)
             };
             [
                 rx + 0.01 * f64::from(i),

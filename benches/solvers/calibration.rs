@@ -42,7 +42,11 @@ pub fn benches(c: &mut Criterion) {
     // The real Ladybug5+ `.conf` (tests/data/ladybug5p, MIT): camera 0's raw image through
     // its B-spline warps, and the LUT `vgps calib convert --to lut` makes of it (step 4).
     let conf = vgps::calibration::formats::ladybug_conf::read_conf(
-        concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/ladybug5p/ladybug5p.conf").as_ref(),
+        concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/tests/data/ladybug5p/ladybug5p.conf"
+        )
+        .as_ref(),
     )
     .unwrap_or_else(|e| unreachable!("{e}"));
     let raw = conf

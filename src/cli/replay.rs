@@ -126,10 +126,10 @@ pub fn run(args: &ReplayArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resul
     };
     let mut drive =
         Drive::open(&args.drive, strictness).map_err(|e| CliError::Calibration(e.to_string()))?;
-    if args.from_images || drive.manifest().detections.is_none() || args.image_size.is_some() {
-        if let Some(note) = super::image_size::resolve(&mut drive, args.image_size)? {
-            let _ = writeln!(err, "vgps: {note}");
-        }
+    if (args.from_images || drive.manifest().detections.is_none() || args.image_size.is_some())
+        && let Some(note) = super::image_size::resolve(&mut drive, args.image_size)?
+    {
+        let _ = writeln!(err, "vgps: {note}");
     }
     args.gnss.apply(&mut drive, err)?;
     for w in drive.warnings() {

@@ -92,7 +92,7 @@ pub enum NativeModel {
     TabulatedPinhole(TabulatedReference),
     /// A [`SplinePinhole`](crate::calibration::SplinePinhole) (a Ladybug `.conf` camera),
     /// its warps inline.
-    SplinePinhole(crate::calibration::SplinePinholeParams),
+    SplinePinhole(Box<crate::calibration::SplinePinholeParams>),
 }
 
 /// A LUT camera: the LUT file, relative to the JSON's directory.
@@ -295,9 +295,9 @@ fn to_camera(model: &NativeModel, dir: &Path) -> Result<Camera, (String, String)
             };
             Camera::TabulatedPinhole(TabulatedPinhole::new(params).map_err(field)?)
         }
-        NativeModel::SplinePinhole(p) => {
-            Camera::SplinePinhole(crate::calibration::SplinePinhole::new(p.clone()).map_err(field)?)
-        }
+        NativeModel::SplinePinhole(p) => Camera::SplinePinhole(
+            crate::calibration::SplinePinhole::new((**p).clone()).map_err(field)?,
+        ),
     })
 }
 
@@ -340,7 +340,9 @@ pub fn to_native(rig: &Rig, stem: &str) -> (NativeFile, Vec<(String, Vec<u8>)>) 
                         undistorted_to_raw: table("u2d", &p.undistorted_to_raw),
                     })
                 }
-                Camera::SplinePinhole(m) => NativeModel::SplinePinhole(m.params().clone()),
+                Camera::SplinePinhole(m) => {
+                    NativeModel::SplinePinhole(Box::new(m.params().clone()))
+                }
             };
             let m = c.rig_from_camera.rotation.matrix();
             let t = c.rig_from_camera.translation.vector;
