@@ -119,6 +119,14 @@ fn patched_jpeg(grey: &image::GrayImage, patch: fn(&mut [u8])) -> Vec<u8> {
     b
 }
 
+/// The real Ladybug5+ `.conf` (tests/data/ladybug5p, MIT, BEAMRobotics/libbeam).
+fn real_conf() -> String {
+    std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/ladybug5p/ladybug5p.conf"),
+    )
+    .expect("the real .conf")
+}
+
 /// Deterministic binary garbage (invalid UTF-8 on its first line).
 fn garbage() -> Vec<u8> {
     (0..2000u32).map(|i| ((i * 37 + 128) % 256) as u8).collect()
@@ -704,6 +712,104 @@ fn rows() -> Vec<Row> {
             args: &["calib", "show", "{t}/c.ini"],
             code: 2,
             stderr: &["{t}/c.ini: line 10, key camera0_FocalLen", "not finite"],
+        },
+        Row {
+            name: "calib: Ladybug .conf with a missing warp id",
+            setup: |t| {
+                write(
+                    t,
+                    "c.conf",
+                    real_conf().replace("RectifiedSpline 8 9", "RectifiedSpline 8 99"),
+                )
+            },
+            args: &["calib", "show", "{t}/c.conf"],
+            code: 2,
+            stderr: &[
+                "{t}/c.conf: line 39, field RectifiedSpline",
+                "warp id 99 is not defined",
+            ],
+        },
+        Row {
+            name: "calib: Ladybug .conf with a duplicated warp id",
+            setup: |t| write(t, "c.conf", real_conf().replace("  Id 47\n", "  Id 46\n")),
+            args: &["calib", "check", "{t}/c.conf"],
+            code: 2,
+            stderr: &["{t}/c.conf: line 6219, field Id", "warp id 46 is repeated"],
+        },
+        Row {
+            name: "calib: Ladybug .conf with decreasing knots",
+            setup: |t| {
+                write(
+                    t,
+                    "c.conf",
+                    real_conf().replacen("0.05 0.1 0.15", "0.05 0.01 0.15", 1),
+                )
+            },
+            args: &["calib", "show", "{t}/c.conf"],
+            code: 2,
+            stderr: &[
+                "{t}/c.conf: line 178, field KnotsX",
+                "knots must not decrease",
+            ],
+        },
+        Row {
+            name: "calib: Ladybug .conf with a coefficient count that is not nx·ny",
+            setup: |t| write(t, "c.conf", real_conf().replacen("  0.00362313 ", "  ", 1)),
+            args: &["calib", "show", "{t}/c.conf"],
+            code: 2,
+            stderr: &[
+                "{t}/c.conf: line 181, field Coefs",
+                "528 coefficients, but NumberCoefs 23 23",
+            ],
+        },
+        Row {
+            name: "calib: Ladybug .conf with a NaN coefficient",
+            setup: |t| write(t, "c.conf", real_conf().replacen("0.00362313", "nan", 1)),
+            args: &["calib", "show", "{t}/c.conf"],
+            code: 2,
+            stderr: &["{t}/c.conf: line 182, field Coefs", "not finite"],
+        },
+        Row {
+            name: "calib: Ladybug .conf truncated in a warp block",
+            setup: |t| write(t, "c.conf", &real_conf()[..330_000]),
+            args: &["calib", "show", "{t}/c.conf"],
+            code: 2,
+            stderr: &["{t}/c.conf: line 6218, field BeginWarp", "block not closed"],
+        },
+        Row {
+            name: "calib: Ladybug .conf of an unknown Version",
+            setup: |t| {
+                write(
+                    t,
+                    "c.conf",
+                    real_conf().replace("Ladybug 2.0", "Ladybug 3.0"),
+                )
+            },
+            args: &["calib", "show", "{t}/c.conf"],
+            code: 2,
+            stderr: &["{t}/c.conf: line 1, field Version", "unknown version"],
+        },
+        Row {
+            name: "calib: Ladybug INI dump (dotted spelling) missing a required key",
+            setup: |t| {
+                let text = std::fs::read_to_string(fixture("calibration/ladybug_64x48.ini"))
+                    .expect("ini")
+                    .replace("camera2_transZ = 0\n", "")
+                    .replace(" = ", " ")
+                    .replacen(
+                        "camera",
+                        "#camera_model Ladybug5 LD5-U3-51S5C-44\ncamera",
+                        1,
+                    );
+                write(
+                    t,
+                    "c.ini",
+                    text.replace("_rot", ".rot").replace("_trans", ".trans"),
+                );
+            },
+            args: &["calib", "show", "{t}/c.ini"],
+            code: 2,
+            stderr: &["{t}/c.ini: key camera2_transZ", "missing key"],
         },
         Row {
             name: "calib: truncated JSON",

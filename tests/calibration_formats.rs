@@ -476,17 +476,19 @@ pub fn bad_cases() -> Vec<BadCase> {
             expected: ["ladybug_64x48.ini", "key camera3_rotY", "missing key"],
         },
         BadCase {
-            name: "ini extra key",
+            // An unknown key (`camera6_rotX`) is only a warning since issue 23; a repeated
+            // one is an error.
+            name: "ini repeated key",
             fixture: "ladybug_64x48.ini",
             breaker: |p| {
-                edit(p, |t| format!("{t}camera6_rotX = 0\n"));
+                edit(p, |t| format!("{t}camera1_rotX = 0\n"));
                 same(p)
             },
             image_size: None,
             expected: [
                 "ladybug_64x48.ini",
-                "line 58, key camera6_rotX",
-                "unknown key",
+                "line 58, key camera1_rotX",
+                "repeated key",
             ],
         },
         BadCase {

@@ -123,9 +123,9 @@ fn bad_files_exit_2_naming_file_location_and_reason() {
         ),
         (
             "extra.ini",
-            format!("{ini}camera0_Skew = 0\n"),
+            format!("{ini}camera0_rotX = 0\n"),
             vec![],
-            ["extra.ini", "key camera0_Skew", "unknown key"],
+            ["extra.ini", "key camera0_rotX", "repeated key"],
         ),
         (
             "model.json",

@@ -39,6 +39,23 @@ pub fn benches(c: &mut Criterion) {
         ("equirectangular", panorama().into()),
         ("lut", lut.into()),
     ];
+    // The real Ladybug5+ `.conf` (tests/data/ladybug5p, MIT): camera 0's raw image through
+    // its B-spline warps, and the LUT `vgps calib convert --to lut` makes of it (step 4).
+    let conf = vgps::calibration::formats::ladybug_conf::read_conf(
+        concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/tests/data/ladybug5p/ladybug5p.conf"
+        )
+        .as_ref(),
+    )
+    .unwrap_or_else(|e| unreachable!("{e}"));
+    let raw = conf
+        .raw_model(&conf.cameras[0])
+        .unwrap_or_else(|e| unreachable!("{e}"));
+    let raw_lut = Lut::from_model(&raw, 4).unwrap_or_else(|e| unreachable!("{e}"));
+    let mut cameras = cameras;
+    cameras.push(("ladybug5p_conf_raw", raw.into()));
+    cameras.push(("ladybug5p_conf_lut", raw_lut.into()));
     let mut group = c.benchmark_group("calibration");
     group
         .warm_up_time(Duration::from_millis(500))

@@ -68,7 +68,8 @@ pub enum CalibCommand {
 /// How to read a calibration.
 #[derive(Debug, Clone, clap::Args)]
 pub struct SourceArgs {
-    /// Calibration format (default: detected from the file): native, ladybug-ini, nclt.
+    /// Calibration format (default: detected from the file): native, ladybug-ini, nclt,
+    /// ladybug-conf.
     #[arg(long, value_parser = parse_format)]
     pub format: Option<Format>,
     /// Image size WxH (pixels) for a Ladybug INI export that names none.
@@ -152,8 +153,12 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
 /// its output; 2 on any other failure).
 pub fn run(args: CalibArgs) -> ExitCode {
     let result = match args.command {
-        CalibCommand::Show(a) => load(&a.file, &a.source).and_then(|rig| show(&a.file, &rig)),
-        CalibCommand::Check(a) => load(&a.file, &a.source).and_then(|rig| check(&a.file, &rig)),
+        CalibCommand::Show(a) => load(&a.file, &a.source)
+            .and_then(|rig| show(&a.file, &rig))
+            .and_then(|()| file_info(&a.file, &a.source, false)),
+        CalibCommand::Check(a) => load(&a.file, &a.source)
+            .and_then(|rig| check(&a.file, &rig))
+            .and_then(|()| file_info(&a.file, &a.source, true)),
         CalibCommand::Bearings(a) => load(&a.calibration, &a.source).and_then(|rig| bearings(&rig)),
         CalibCommand::Pixels(a) => load(&a.calibration, &a.source).and_then(|rig| pixels(&rig)),
         CalibCommand::Convert(a) => match convert(&a) {
@@ -172,6 +177,22 @@ pub fn run(args: CalibArgs) -> ExitCode {
             ExitCode::from(EXIT_FAILURE)
         }
     }
+}
+
+/// Prints [`super::calib_file_info::file_info`]; with `check`, fails when a file check
+/// fails.
+fn file_info(path: &Path, source: &SourceArgs, check: bool) -> Result<(), String> {
+    let (text, ok) = super::calib_file_info::file_info(path, source)?;
+    std::io::stdout()
+        .write_all(text.as_bytes())
+        .map_err(io_error)?;
+    if check && !ok {
+        return Err(format!(
+            "{}: a stored pair is off by more than the limit",
+            path.display()
+        ));
+    }
+    Ok(())
 }
 
 fn load(path: &Path, source: &SourceArgs) -> Result<Rig, String> {

@@ -139,6 +139,7 @@ fn replay_args(
         no_surrogates: false,
         no_gnss_prior: false,
         from_images,
+        image_size: None,
         gnss: Default::default(),
     }
 }

@@ -42,6 +42,10 @@ pub struct DetectArgs {
     /// Unknown keys in drive.json are an error (default: a warning).
     #[arg(long)]
     pub strict: bool,
+    /// Image size WxH of cameras whose calibration names none (a Ladybug INI dump); by
+    /// default taken from the images (all images of those cameras must agree).
+    #[arg(long, value_parser = super::image_size::parse_image_size)]
+    pub image_size: Option<(u32, u32)>,
 }
 
 /// Counts of one `vgps detect` run.
@@ -74,8 +78,11 @@ pub fn run(args: &DetectArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resul
     } else {
         Strictness::Lenient
     };
-    let drive =
+    let mut drive =
         Drive::open(&args.drive, strictness).map_err(|e| CliError::Calibration(e.to_string()))?;
+    if let Some(note) = super::image_size::resolve(&mut drive, args.image_size)? {
+        let _ = writeln!(err, "vgps: {note}");
+    }
     for w in drive.warnings() {
         let _ = writeln!(err, "vgps: warning: {w}");
     }

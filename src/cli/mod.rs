@@ -10,9 +10,11 @@
 
 pub mod args;
 pub mod calib;
+pub mod calib_file_info;
 pub mod demo;
 pub mod detect;
 pub mod gnss_input;
+pub mod image_size;
 pub mod locate;
 pub mod map;
 pub mod replay;

@@ -54,6 +54,10 @@ pub struct ReplayArgs {
     /// Summary format on stdout.
     #[arg(long, value_enum, default_value = "text")]
     pub format: OutputFormat,
+    /// Image size WxH of cameras whose calibration names none (a Ladybug INI dump), for
+    /// `--from-images`; by default taken from the images (all of those cameras must agree).
+    #[arg(long, value_parser = super::image_size::parse_image_size)]
+    pub image_size: Option<(u32, u32)>,
     /// Unknown keys in drive.json are an error (default: a warning).
     #[arg(long)]
     pub strict: bool,
@@ -119,6 +123,11 @@ pub fn run(args: &ReplayArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resul
     };
     let mut drive =
         Drive::open(&args.drive, strictness).map_err(|e| CliError::Calibration(e.to_string()))?;
+    if (args.from_images || drive.manifest().detections.is_none() || args.image_size.is_some())
+        && let Some(note) = super::image_size::resolve(&mut drive, args.image_size)?
+    {
+        let _ = writeln!(err, "vgps: {note}");
+    }
     args.gnss.apply(&mut drive, err)?;
     for w in drive.warnings() {
         let _ = writeln!(err, "vgps: warning: {w}");

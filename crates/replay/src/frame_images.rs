@@ -162,16 +162,22 @@ pub fn detect_frame_images(
             .and_then(|img| check_dimensions(&img, &rig_camera.model, &path).map(|()| img))
             .and_then(|img| detector.detect(&img, None));
         match decoded {
-            Ok(found) => result
-                .detections
-                .extend(found.lamps.iter().map(|l| Detection {
-                    frame: frame.frame,
-                    camera,
-                    u: l.u,
-                    v: l.v,
-                    strength: Some(l.strength),
-                    class: None,
-                })),
+            // Detections on pixels that never see the world (the calibration's mask) are
+            // dropped.
+            Ok(found) => result.detections.extend(
+                found
+                    .lamps
+                    .iter()
+                    .filter(|l| !rig.is_masked(camera, &nalgebra::Vector2::new(l.u, l.v)))
+                    .map(|l| Detection {
+                        frame: frame.frame,
+                        camera,
+                        u: l.u,
+                        v: l.v,
+                        strength: Some(l.strength),
+                        class: None,
+                    }),
+            ),
             Err(e) => result.problems.push(ImageProblem {
                 camera,
                 kind: ImageProblemKind::of(&e),

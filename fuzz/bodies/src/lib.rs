@@ -18,7 +18,7 @@
 use arbitrary::{Arbitrary, Unstructured};
 use nalgebra::{Matrix3, Vector2, Vector3};
 use std::path::Path;
-use vgps_camera::calibration::formats::{ladybug_ini, native, nclt};
+use vgps_camera::calibration::formats::{ladybug_conf, ladybug_ini, native, nclt};
 use vgps_camera::calibration::{
     Camera, CameraModel, Lut, Rig, TabulatedPinhole, TabulatedPinholeParams,
 };
@@ -260,6 +260,29 @@ pub fn ladybug_ini(data: &[u8]) {
     for size in [None, Some((64, 48))] {
         if let Ok(rig) = ladybug_ini::parse(&text, Path::new(FUZZ_PATH), size) {
             check_rig(&rig);
+        }
+    }
+}
+
+/// Target `ladybug_conf`: the Ladybug SDK `.conf` file ([`ladybug_conf::parse`]), then the
+/// raw and rectified rigs and the stored pairs' residuals (finite, or flagged not seen).
+pub fn ladybug_conf(data: &[u8]) {
+    let text = text(data);
+    let Ok(conf) = ladybug_conf::parse(&text, Path::new(FUZZ_PATH)) else {
+        return;
+    };
+    if let Ok(rig) = conf.raw_rig() {
+        check_rig(&rig);
+    }
+    if let Ok(rig) = conf.rectified_rig() {
+        check_rig(&rig);
+    }
+    for c in &conf.cameras {
+        for ((_, _, r), seen) in conf.pair_residuals(c) {
+            assert!(
+                !seen || r.iter().all(|x| x.is_finite()),
+                "pair residual {r}"
+            );
         }
     }
 }
@@ -717,6 +740,7 @@ pub type Target = (&'static str, fn(&[u8]));
 pub const TARGETS: &[Target] = &[
     ("native_json", native_json),
     ("ladybug_ini", ladybug_ini),
+    ("ladybug_conf", ladybug_conf),
     ("nclt_calibration", nclt_calibration),
     ("nclt_table", nclt_table),
     ("lut", lut),

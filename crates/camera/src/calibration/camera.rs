@@ -1,6 +1,9 @@
 //! The enum of every camera model, with static dispatch of [`CameraModel`].
 
-use super::{CameraModel, Equirectangular, KannalaBrandt, Lut, Pinhole, Pixel, TabulatedPinhole};
+use super::{
+    CameraModel, Equirectangular, KannalaBrandt, Lut, Pinhole, Pixel, SplinePinhole,
+    TabulatedPinhole,
+};
 use nalgebra::{Matrix2x3, Matrix3x2, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -30,6 +33,8 @@ pub enum Camera {
     Lut(Lut),
     /// A pinhole with tabulated (NCLT `D2U`/`U2D`) distortion, or unbounded.
     TabulatedPinhole(TabulatedPinhole),
+    /// A raw image rectified to a pinhole by B-spline warps (a Ladybug `.conf` camera).
+    SplinePinhole(SplinePinhole),
 }
 
 macro_rules! dispatch {
@@ -40,6 +45,7 @@ macro_rules! dispatch {
             Camera::Equirectangular($m) => $e,
             Camera::Lut($m) => $e,
             Camera::TabulatedPinhole($m) => $e,
+            Camera::SplinePinhole($m) => $e,
         }
     };
 }
@@ -53,6 +59,7 @@ impl Camera {
             Camera::Equirectangular(_) => "equirectangular",
             Camera::Lut(_) => "lut",
             Camera::TabulatedPinhole(_) => "tabulated_pinhole",
+            Camera::SplinePinhole(_) => "spline_pinhole",
         }
     }
 }
@@ -116,5 +123,11 @@ impl From<Lut> for Camera {
 impl From<TabulatedPinhole> for Camera {
     fn from(m: TabulatedPinhole) -> Self {
         Camera::TabulatedPinhole(m)
+    }
+}
+
+impl From<SplinePinhole> for Camera {
+    fn from(m: SplinePinhole) -> Self {
+        Camera::SplinePinhole(m)
     }
 }

@@ -45,22 +45,28 @@
 // `!(x < limit)` is used on purpose throughout: it rejects NaN along with out-of-range values.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+mod bspline;
 mod camera;
 mod equirectangular;
 pub mod formats;
 mod kannala_brandt;
 mod lut;
+mod mask;
 mod pinhole;
 mod rig;
+mod spline_pinhole;
 mod tabulated_pinhole;
 
+pub use bspline::{BSplineSurface, BSplineSurfaceParams};
 pub use camera::Camera;
 pub use equirectangular::*;
 pub use formats::{Format, LoadError, load, save_native};
 pub use kannala_brandt::*;
 pub use lut::*;
+pub use mask::CameraMask;
 pub use pinhole::*;
 pub use rig::*;
+pub use spline_pinhole::*;
 pub use tabulated_pinhole::{
     DistortionTable, TABLE_INVERSE_RESIDUAL, TABLE_INVERSE_TOLERANCE, TabulatedPinhole,
     TabulatedPinholeParams,

@@ -48,6 +48,8 @@ pub struct RigPixel {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Rig {
     cameras: Vec<RigCamera>,
+    /// Per camera, the pixels that never see the world (none by default).
+    masks: Vec<Option<std::sync::Arc<super::CameraMask>>>,
 }
 
 impl Rig {
@@ -70,7 +72,8 @@ impl Rig {
                 return Err(CalibrationError::NonFiniteTranslation { camera: index });
             }
         }
-        Ok(Self { cameras })
+        let masks = vec![None; cameras.len()];
+        Ok(Self { cameras, masks })
     }
 
     /// A rig of one panorama at the rig origin, its centre along rig +x and its top along
@@ -84,7 +87,44 @@ impl Rig {
                     rig_from_panorama(),
                 ),
             }],
+            masks: vec![None],
         }
+    }
+
+    /// The rig with `mask` as camera `camera`'s mask (the pixels that never see the world);
+    /// the mask must have the camera's image size.
+    ///
+    /// # Errors
+    /// [`CalibrationError::UnknownCamera`], or [`CalibrationError::InvalidParameters`] when
+    /// the sizes differ.
+    pub fn with_mask(
+        mut self,
+        camera: usize,
+        mask: super::CameraMask,
+    ) -> Result<Self, CalibrationError> {
+        let size = self.camera(camera)?.model.image_size();
+        if mask.dimensions() != size {
+            let (w, h) = mask.dimensions();
+            return Err(CalibrationError::InvalidParameters {
+                model: "mask",
+                reason: format!(
+                    "camera {camera}: mask of {w}×{h} pixels, the image has {}×{}",
+                    size.0, size.1
+                ),
+            });
+        }
+        self.masks[camera] = Some(std::sync::Arc::new(mask));
+        Ok(self)
+    }
+
+    /// Camera `camera`'s mask, when it has one.
+    pub fn mask(&self, camera: usize) -> Option<&super::CameraMask> {
+        self.masks.get(camera).and_then(|m| m.as_deref())
+    }
+
+    /// Whether `pixel` of camera `camera` is masked (never sees the world).
+    pub fn is_masked(&self, camera: usize, pixel: &Pixel) -> bool {
+        self.mask(camera).is_some_and(|m| m.is_masked_at(pixel))
     }
 
     /// The cameras.

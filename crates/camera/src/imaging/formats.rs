@@ -72,7 +72,7 @@ impl ImageFormat {
     /// The format of `bytes`, from its signature; `None` for anything else.
     ///
     /// ```
-    /// use vgps::imaging::ImageFormat;
+    /// use vgps_camera::imaging::ImageFormat;
     /// assert_eq!(ImageFormat::sniff(&[0xFF, 0xD8, 0xFF, 0xE0]), Some(ImageFormat::Jpeg));
     /// assert_eq!(ImageFormat::sniff(b"II*\0"), Some(ImageFormat::Tiff));
     /// assert_eq!(ImageFormat::sniff(b"GIF89a"), None);
@@ -97,7 +97,7 @@ impl ImageFormat {
 ///
 /// # Example
 /// ```
-/// use vgps::imaging::{DecodeLimits, ImagingError, decode_image};
+/// use vgps_camera::imaging::{DecodeLimits, ImagingError, decode_image};
 /// let grey = image::GrayImage::from_fn(16, 8, |x, y| image::Luma([(x * 16 + y) as u8]));
 /// let mut jpeg = Vec::new();
 /// image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 95).encode_image(&grey)
@@ -228,7 +228,7 @@ pub struct JpegFrameHeader {
 /// `None` when the data ends (or is malformed) before one.
 ///
 /// ```
-/// use vgps::imaging::formats::jpeg_frame_header;
+/// use vgps_camera::imaging::formats::jpeg_frame_header;
 /// // SOI, then a baseline SOF0: 8 bit, 768 rows, 1024 columns, 3 components.
 /// let bytes = [0xFF, 0xD8, 0xFF, 0xC0, 0, 17, 8, 3, 0, 4, 0, 3];
 /// let h = jpeg_frame_header(&bytes).unwrap();
@@ -276,7 +276,7 @@ pub fn jpeg_frame_header(bytes: &[u8]) -> Option<JpegFrameHeader> {
 /// 257, SHORT or LONG, either byte order); `None` when the data ends or is malformed first.
 ///
 /// ```
-/// use vgps::imaging::formats::tiff_dimensions;
+/// use vgps_camera::imaging::formats::tiff_dimensions;
 /// // Little-endian header, IFD at 8 with two entries: width 640 (SHORT), height 480 (LONG).
 /// let mut b = b"II*\0\x08\0\0\0\x02\0".to_vec();
 /// b.extend([0, 1, 3, 0, 1, 0, 0, 0, 0x80, 2, 0, 0]);
@@ -455,7 +455,7 @@ fn decode_with_image(
 /// Scales a 16-bit sample to 8 bits, `round(v · 255 / 65535)`.
 ///
 /// ```
-/// use vgps::imaging::formats::scale16;
+/// use vgps_camera::imaging::formats::scale16;
 /// assert_eq!((scale16(0), scale16(128), scale16(0x8000), scale16(65535)), (0, 0, 128, 255));
 /// assert_eq!(scale16(0x01FE), 2); // the high byte alone would be 1
 /// ```
@@ -491,7 +491,7 @@ fn unit_to_u8(x: f32) -> u8 {
 /// The 8-bit Rec. 601 luminance of a decoded image (see the [module docs](self)).
 ///
 /// ```
-/// use vgps::imaging::formats::to_luma8;
+/// use vgps_camera::imaging::formats::to_luma8;
 /// let rgb = image::RgbImage::from_pixel(1, 1, image::Rgb([255, 0, 0]));
 /// assert_eq!(to_luma8(&rgb.into()).as_raw(), &[77]); // 0.299 · 255 = 76.2 → 77/256 weights
 /// ```

@@ -189,7 +189,7 @@ pub struct StreetDetections {
 ///
 /// # Example
 /// ```
-/// use vgps::imaging::{LampClass, StreetLampDetector};
+/// use vgps_camera::imaging::{LampClass, StreetLampDetector};
 /// // A lamp (saturated disc, radius 3 px) with a dim halo on a textured street.
 /// let image = image::GrayImage::from_fn(120, 90, |x, y| {
 ///     let d2 = (x as f64 - 60.0).powi(2) + (y as f64 - 30.0).powi(2);
@@ -202,7 +202,7 @@ pub struct StreetDetections {
 /// let lamp = found.lamps[0];
 /// assert!((lamp.u - 60.0).abs() < 0.1 && (lamp.v - 30.0).abs() < 0.1);
 /// assert_eq!(lamp.class, LampClass::Lamp);
-/// # Ok::<(), vgps::imaging::ImagingError>(())
+/// # Ok::<(), vgps_camera::imaging::ImagingError>(())
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct StreetLampDetector {

@@ -414,6 +414,20 @@ impl Drive {
         &self.rig
     }
 
+    /// Reloads the rig calibration with an image size for the cameras whose calibration
+    /// names none (a Ladybug INI dump; see [`vgps_camera::calibration::load`]).
+    ///
+    /// # Errors
+    /// [`DriveError`] naming the calibration file when it cannot be loaded with that size.
+    pub fn reload_calibration(&mut self, image_size: (u32, u32)) -> Result<(), DriveError> {
+        self.rig = vgps_camera::calibration::load(
+            &self.dir.join(&self.manifest.calibration),
+            None,
+            Some(image_size),
+        )?;
+        Ok(())
+    }
+
     /// The surveyed landmarks.
     pub fn landmarks(&self) -> &[Landmark] {
         &self.landmarks

@@ -10,6 +10,7 @@ pub const DETECT_BYTES: u64 = 64 * 1024;
 /// The format of `path`:
 /// - a directory holding `K_cam0.csv` → [`Format::Nclt`];
 /// - a file whose first non-blank character is `{` → [`Format::Native`];
+/// - a file beginning with `Version "Ladybug` → [`Format::LadybugConf`];
 /// - a file with a `camera0_…` or `image_width` key before an `=` → [`Format::LadybugIni`];
 /// - otherwise, by extension: `.json` → native, `.ini` → Ladybug INI.
 ///
@@ -48,6 +49,9 @@ pub fn detect(path: &Path) -> Result<Format, LoadError> {
     if text.trim_start().starts_with('{') {
         return Ok(Format::Native);
     }
+    if text.trim_start().starts_with("Version \"Ladybug") {
+        return Ok(Format::LadybugConf);
+    }
     let ini = text.lines().any(|l| {
         l.split_once('=').is_some_and(|(k, _)| {
             let k = k.trim();
@@ -60,6 +64,7 @@ pub fn detect(path: &Path) -> Result<Format, LoadError> {
     match path.extension().and_then(|e| e.to_str()) {
         Some(e) if e.eq_ignore_ascii_case("json") => Ok(Format::Native),
         Some(e) if e.eq_ignore_ascii_case("ini") => Ok(Format::LadybugIni),
+        Some(e) if e.eq_ignore_ascii_case("conf") => Ok(Format::LadybugConf),
         _ => Err(unknown(
             "neither JSON, nor `cameraN_…` INI keys, nor an NCLT directory",
         )),

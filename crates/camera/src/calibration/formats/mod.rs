@@ -27,6 +27,7 @@
 //! ```
 
 pub mod detect;
+pub mod ladybug_conf;
 pub mod ladybug_ini;
 pub mod native;
 pub mod nclt;
@@ -46,11 +47,19 @@ pub enum Format {
     LadybugIni,
     /// An NCLT-style Ladybug3 directory ([`nclt`]); name `nclt`.
     Nclt,
+    /// The Ladybug SDK's own `.conf` file ([`ladybug_conf`]), raw cameras; name
+    /// `ladybug-conf`.
+    LadybugConf,
 }
 
 impl Format {
     /// Every format, in the order of their names in messages.
-    pub const ALL: [Format; 3] = [Format::Native, Format::LadybugIni, Format::Nclt];
+    pub const ALL: [Format; 4] = [
+        Format::Native,
+        Format::LadybugIni,
+        Format::Nclt,
+        Format::LadybugConf,
+    ];
 
     /// The format's name on the command line (`native`, `ladybug-ini`, `nclt`).
     pub fn name(self) -> &'static str {
@@ -58,6 +67,7 @@ impl Format {
             Format::Native => "native",
             Format::LadybugIni => "ladybug-ini",
             Format::Nclt => "nclt",
+            Format::LadybugConf => "ladybug-conf",
         }
     }
 }
@@ -74,7 +84,9 @@ impl FromStr for Format {
         Format::ALL
             .into_iter()
             .find(|f| f.name() == s)
-            .ok_or_else(|| format!("unknown format `{s}` (expected native, ladybug-ini or nclt)"))
+            .ok_or_else(|| {
+                format!("unknown format `{s}` (expected native, ladybug-ini, nclt or ladybug-conf)")
+            })
     }
 }
 
@@ -157,6 +169,7 @@ pub fn load(
         Format::Native => native::read(path)?,
         Format::LadybugIni => return ladybug_ini::read(path, image_size),
         Format::Nclt => nclt::read(path)?,
+        Format::LadybugConf => ladybug_conf::read(path)?,
     };
     if let Some((w, h)) = image_size {
         for (i, c) in rig.cameras().iter().enumerate() {

@@ -90,6 +90,9 @@ pub enum NativeModel {
     Lut(LutReference),
     /// A [`TabulatedPinhole`] with its tables in side files.
     TabulatedPinhole(TabulatedReference),
+    /// A [`SplinePinhole`](crate::calibration::SplinePinhole) (a Ladybug `.conf` camera),
+    /// its warps inline.
+    SplinePinhole(Box<crate::calibration::SplinePinholeParams>),
 }
 
 /// A LUT camera: the LUT file, relative to the JSON's directory.
@@ -292,6 +295,9 @@ fn to_camera(model: &NativeModel, dir: &Path) -> Result<Camera, (String, String)
             };
             Camera::TabulatedPinhole(TabulatedPinhole::new(params).map_err(field)?)
         }
+        NativeModel::SplinePinhole(p) => Camera::SplinePinhole(
+            crate::calibration::SplinePinhole::new((**p).clone()).map_err(field)?,
+        ),
     })
 }
 
@@ -333,6 +339,9 @@ pub fn to_native(rig: &Rig, stem: &str) -> (NativeFile, Vec<(String, Vec<u8>)>) 
                         raw_to_undistorted: table("d2u", &p.raw_to_undistorted),
                         undistorted_to_raw: table("u2d", &p.undistorted_to_raw),
                     })
+                }
+                Camera::SplinePinhole(m) => {
+                    NativeModel::SplinePinhole(Box::new(m.params().clone()))
                 }
             };
             let m = c.rig_from_camera.rotation.matrix();

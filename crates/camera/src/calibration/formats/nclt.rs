@@ -379,7 +379,30 @@ pub fn read(dir: &Path) -> Result<Rig, LoadError> {
             rig_from_camera,
         });
     }
-    Rig::new(cameras).map_err(|e| LoadError::invalid(dir, "x_lb3_c*.csv", e.to_string()))
+    let rig =
+        Rig::new(cameras).map_err(|e| LoadError::invalid(dir, "x_lb3_c*.csv", e.to_string()))?;
+    read_masks(rig, dir)
+}
+
+/// Adds the optional per-camera masks `mask_cam{i}.png` of a calibration directory (black
+/// = the pixel never sees the world; in the raw image's orientation and size).
+///
+/// # Errors
+/// [`LoadError::Invalid`] naming the mask file when it cannot be read or its size is not
+/// the camera's.
+pub fn read_masks(mut rig: Rig, dir: &Path) -> Result<Rig, LoadError> {
+    for i in 0..rig.len() {
+        let path = dir.join(format!("mask_cam{i}.png"));
+        if !path.is_file() {
+            continue;
+        }
+        let mask = crate::calibration::CameraMask::read_png(&path)
+            .map_err(|e| LoadError::invalid(&path, "mask", e.to_string()))?;
+        rig = rig
+            .with_mask(i, mask)
+            .map_err(|e| LoadError::invalid(&path, "mask", e.to_string()))?;
+    }
+    Ok(rig)
 }
 
 /// Writes a rig of tabulated cameras as an NCLT-style directory (created if needed; files

@@ -1,0 +1,113 @@
+//! The image size of a rig whose calibration names none (a Ladybug INI dump): from
+//! `--image-size WxH`, or from the PNG headers of the drive's images (every image of every
+//! such camera must agree), for `vgps detect` and `vgps replay --from-images`.
+
+use super::CliError;
+use std::io::Read;
+use std::path::Path;
+use vgps_camera::calibration::CameraModel;
+use vgps_replay::drive::Drive;
+
+/// Parses `WxH` (e.g. `2048x2448`).
+///
+/// # Errors
+/// The reason, for clap.
+pub fn parse_image_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("`{s}` is not WxH"))?;
+    let w: u32 = w
+        .trim()
+        .parse()
+        .map_err(|_| format!("bad width in `{s}`"))?;
+    let h: u32 = h
+        .trim()
+        .parse()
+        .map_err(|_| format!("bad height in `{s}`"))?;
+    if w == 0 || h == 0 {
+        return Err(format!("image size `{s}` must be non-zero"));
+    }
+    Ok((w, h))
+}
+
+/// `(width, height)` from a PNG's IHDR chunk, reading 24 bytes; `None` for anything that is
+/// not a PNG header.
+pub fn png_dimensions(path: &Path) -> Option<(u32, u32)> {
+    let mut head = [0u8; 24];
+    std::fs::File::open(path).ok()?.read_exact(&mut head).ok()?;
+    if head[..8] != *b"\x89PNG\r\n\x1a\n" || head[12..16] != *b"IHDR" {
+        return None;
+    }
+    let w = u32::from_be_bytes([head[16], head[17], head[18], head[19]]);
+    let h = u32::from_be_bytes([head[20], head[21], head[22], head[23]]);
+    Some((w, h))
+}
+
+/// Gives the drive's unbounded cameras an image size: `given`, else the size every PNG of
+/// those cameras has (unreadable images are skipped: they are reported per frame later).
+/// Returns a note for stderr when a size was applied.
+///
+/// # Errors
+/// [`CliError::Calibration`] when images of those cameras disagree, or when the
+/// calibration cannot take the size.
+pub fn resolve(drive: &mut Drive, given: Option<(u32, u32)>) -> Result<Option<String>, CliError> {
+    let unbounded: Vec<usize> = (0..drive.rig().len())
+        .filter(|&i| drive.rig().cameras()[i].model.image_size() == (0, 0))
+        .collect();
+    if unbounded.is_empty() {
+        return match given {
+            Some((w, h)) => {
+                // The calibration has sizes: the given one must agree (checked by load).
+                drive
+                    .reload_calibration((w, h))
+                    .map_err(|e| CliError::Calibration(e.to_string()))?;
+                Ok(None)
+            }
+            None => Ok(None),
+        };
+    }
+    let size = match given {
+        Some(s) => s,
+        None => {
+            let mut found: Option<((u32, u32), String)> = None;
+            for frame in drive.frames() {
+                for &camera in &unbounded {
+                    let Some(Some(name)) = frame.images.get(camera) else {
+                        continue;
+                    };
+                    let Some(size) = png_dimensions(&drive.dir().join(name)) else {
+                        continue;
+                    };
+                    match &found {
+                        None => found = Some((size, name.clone())),
+                        Some((first, first_name)) if *first != size => {
+                            return Err(CliError::Calibration(format!(
+                                "the calibration names no image size and the images disagree: \
+                                 {first_name} is {}×{}, {name} is {}×{} (give --image-size WxH)",
+                                first.0, first.1, size.0, size.1
+                            )));
+                        }
+                        Some(_) => {}
+                    }
+                }
+            }
+            match found {
+                Some((s, _)) => s,
+                None => return Ok(None),
+            }
+        }
+    };
+    drive
+        .reload_calibration(size)
+        .map_err(|e| CliError::Calibration(e.to_string()))?;
+    Ok(Some(format!(
+        "the calibration names no image size: using {}×{} ({})",
+        size.0,
+        size.1,
+        if given.is_some() {
+            "--image-size"
+        } else {
+            "the size of every image of those cameras"
+        }
+    )))
+}

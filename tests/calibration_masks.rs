@@ -1,0 +1,101 @@
+//! Per-camera masks in a rig's calibration (pixels that never see the world): read from a
+//! calibration directory, checked against the image size, and applied to detections.
+
+use image::GrayImage;
+use nalgebra::Vector2;
+use std::path::Path;
+use vgps::calibration::{
+    Camera, CameraMask, Equirectangular, EquirectangularParams, Rig, formats::nclt,
+};
+use vgps::drive::Frame;
+use vgps::imaging::{LampDetector, detect_frame_images, encode_png};
+
+fn manifest(p: &str) -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(p)
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).expect("mkdir");
+    for e in std::fs::read_dir(from).expect("dir") {
+        let p = e.expect("entry").path();
+        std::fs::copy(&p, to.join(p.file_name().expect("name"))).expect("copy");
+    }
+}
+
+#[test]
+fn nclt_directory_masks_are_read_and_checked() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let d = dir.path().join("nclt");
+    copy_dir(&manifest("tests/fixtures/calibration/nclt_16x12"), &d);
+    // Camera 2: the bottom three rows see the vehicle (black).
+    let img = GrayImage::from_fn(16, 12, |_, v| image::Luma([if v >= 9 { 0 } else { 255 }]));
+    std::fs::write(d.join("mask_cam2.png"), encode_png(&img).expect("png")).expect("write");
+    let rig = nclt::read(&d).expect("read");
+    assert!(rig.mask(0).is_none());
+    let m = rig.mask(2).expect("mask of camera 2");
+    assert_eq!(m.dimensions(), (16, 12));
+    assert_eq!(m.count(), 16 * 3);
+    assert!(rig.is_masked(2, &Vector2::new(4.0, 9.2)));
+    assert!(!rig.is_masked(2, &Vector2::new(4.0, 8.4)));
+    assert!(!rig.is_masked(1, &Vector2::new(4.0, 10.0)));
+    // A mask of another size is an error naming the file.
+    let small = GrayImage::from_fn(8, 6, |_, _| image::Luma([0]));
+    std::fs::write(d.join("mask_cam3.png"), encode_png(&small).expect("png")).expect("write");
+    let e = nclt::read(&d).unwrap_err().to_string();
+    assert!(e.contains("mask_cam3.png") && e.contains("8×6"), "{e}");
+}
+
+/// The real NCLT masks (ethz-asl/nclt_tools, Apache-2.0): 616 × 808, black where the
+/// half-resolution upright *undistorted* image has no data (its pincushion border).
+#[test]
+fn real_nclt_masks_read() {
+    for i in 0..6 {
+        let m = CameraMask::read_png(&manifest(&format!("tests/data/nclt_masks/cam_{i}.png")))
+            .expect("mask");
+        assert_eq!(m.dimensions(), (616, 808));
+        let fraction = m.count() as f64 / (616.0 * 808.0);
+        assert!((0.3..0.6).contains(&fraction), "camera {i}: {fraction}");
+        // Corners are outside the undistorted image's data, the centre inside.
+        assert!(m.is_masked(0, 0) && m.is_masked(615, 807) && m.is_masked(0, 404));
+        assert!(
+            !m.is_masked(308, 404) && !m.is_masked(308, 250),
+            "camera {i}"
+        );
+    }
+}
+
+#[test]
+fn detections_on_masked_pixels_are_dropped() {
+    let dir = tempfile::tempdir().expect("tmp");
+    // A dark 64 × 32 panorama with two bright lamps.
+    let lamp = |u: u32, v: u32, cu: u32, cv: u32| u.abs_diff(cu) <= 1 && v.abs_diff(cv) <= 1;
+    let img = GrayImage::from_fn(64, 32, |u, v| {
+        image::Luma([if lamp(u, v, 12, 10) || lamp(u, v, 48, 20) {
+            250
+        } else {
+            10
+        }])
+    });
+    std::fs::write(dir.path().join("f.png"), encode_png(&img).expect("png")).expect("write");
+    let pano = Equirectangular::new(EquirectangularParams {
+        width: 64,
+        height: 32,
+    })
+    .expect("pano");
+    let rig = Rig::panorama(Camera::from(pano));
+    let frame = Frame {
+        frame: 0,
+        time_s: 0.0,
+        images: vec![Some("f.png".into())],
+    };
+    let detector = LampDetector::default();
+    let all = detect_frame_images(dir.path(), &frame, &rig, &detector);
+    assert_eq!(all.detections.len(), 2, "{all:?}");
+    // Mask the right half: the lamp at (48, 20) is dropped.
+    let mask = CameraMask::from_fn(64, 32, |u, _| u >= 32).expect("mask");
+    let masked_rig = rig.with_mask(0, mask).expect("same size");
+    let kept = detect_frame_images(dir.path(), &frame, &masked_rig, &detector);
+    assert_eq!(kept.detections.len(), 1);
+    assert!((kept.detections[0].u - 12.0).abs() < 0.5);
+    assert!(kept.problems.is_empty());
+}
