@@ -93,7 +93,14 @@
 //! assert!((fix.world_from_rig.translation.vector - truth.translation.vector).norm() < 1e-6);
 //! ```
 
+mod azimuth;
+mod cells;
+mod conclusion;
 mod db;
+mod fast_math;
+mod pairs;
+mod scoring;
+mod scratch;
 mod search;
 
 pub use db::{DbLandmark, LandmarkDb};
