@@ -8,6 +8,7 @@ use super::{
     DISTINCT_POSITION_M, DISTINCT_ROTATION_RAD, HYPOTHESIS_THRESHOLD_FACTOR, MAX_KEPT_HYPOTHESES,
     MIN_TRIPLE_ANGLE_RAD, REFINE_PASSES, STOP_CONFIRMATIONS,
 };
+use crate::measurement::effective_bearing_sigma;
 use nalgebra::{Matrix6, Vector3};
 use vgps_geometry::geometry::{Pose, Ray, angle_between, rotation_angle};
 use vgps_geometry::solvers::refine_pose::{RefineOptions, RefinedPose, refine_pose_with_sigmas};
@@ -180,7 +181,7 @@ impl Search<'_> {
             }
             let (v, index, r) = self.scratch_dirs[best];
             let sigma_m = self.db.landmarks()[index].sigma_m;
-            let sigma = (self.options.sigma_rad.powi(2) + (sigma_m / r).powi(2)).sqrt();
+            let sigma = effective_bearing_sigma(self.options.sigma_rad, sigma_m, r);
             let threshold = (threshold_factor * self.options.inlier_threshold_sigmas * sigma)
                 .min(std::f64::consts::PI);
             let predicted = v - det.ray.origin;
@@ -328,7 +329,7 @@ impl Search<'_> {
     /// The effective bearing σ of landmark `l` at `range` metres: the bearing noise and the
     /// survey σ seen from that range, radians.
     pub(super) fn sigma_of(&self, l: &super::DbLandmark, range: f64) -> f64 {
-        (self.options.sigma_rad.powi(2) + (l.sigma_m / range.max(1e-3)).powi(2)).sqrt()
+        effective_bearing_sigma(self.options.sigma_rad, l.sigma_m, range.max(1e-3))
     }
 
     /// Refines `pose` on the links of `assignment` (σ inflated by the survey σ); `None` with
