@@ -68,6 +68,7 @@
 //! assert_eq!(estimate.n_inliers, 5);
 //! ```
 
+use crate::measurement::{DEFAULT_BEARING_SIGMA_RAD, effective_bearing_sigma};
 use nalgebra::{Matrix6, Point3, Vector3, Vector6};
 use vgps_geometry::geometry::{Pose, Ray, angle_between};
 use vgps_geometry::robust::{
@@ -146,7 +147,7 @@ pub struct FixOptions {
 impl Default for FixOptions {
     fn default() -> Self {
         Self {
-            sigma_rad: 0.1_f64.to_radians(),
+            sigma_rad: DEFAULT_BEARING_SIGMA_RAD,
             inlier_threshold_sigmas: INLIER_THRESHOLD_SIGMAS,
             prior: None,
             random_triples: DEFAULT_RANDOM_TRIPLES,
@@ -422,8 +423,7 @@ impl Problem<'_> {
         if self.sigma_m[i] == 0.0 || range <= 0.0 {
             return sigma;
         }
-        let s = self.sigma_m[i] / range;
-        (sigma * sigma + s * s).sqrt()
+        effective_bearing_sigma(sigma, self.sigma_m[i], range)
     }
 
     fn within_prior(&self, pose: &Pose) -> bool {

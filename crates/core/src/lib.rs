@@ -21,5 +21,6 @@ pub mod fix;
 pub mod localizer;
 pub mod mapping;
 pub mod matcher;
+pub mod measurement;
 #[cfg(any(test, feature = "synthetic"))]
 pub mod synthetic;

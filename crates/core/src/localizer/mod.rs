@@ -72,6 +72,7 @@ use crate::mapping::{
     LandmarkMapper, MappedLandmark, MapperOptions, MappingFrame, NearbySurrogate, RigObservation,
 };
 use crate::matcher::{Detection, MatchOptions, MatchStatus, SearchArea, match_detections};
+use crate::measurement::effective_bearing_variance;
 use nalgebra::{Matrix6, Rotation3, UnitQuaternion, Vector3};
 use std::sync::Arc;
 use track::{Candidate, CandidateSource, GuessUncertainty, ObsRay};
@@ -1035,7 +1036,7 @@ fn common_mode(
             continue;
         };
         let range = (c.position - p).norm().max(1.0);
-        let w = 1.0 / (o.sigma_rad * o.sigma_rad + (c.sigma_m / range).powi(2));
+        let w = 1.0 / effective_bearing_variance(o.sigma_rad, c.sigma_m, range);
         total += w;
         if let Some(cov) = c.common_covariance {
             from_surrogates += w;

@@ -2,6 +2,7 @@
 //! nearest to it from a pose guess, then refine the pose on the associations.
 
 use crate::mapping::{CONE_ABSOLUTE_MARGIN, CONE_MIN_COS, CONE_RELATIVE_MARGIN, max_or_nan};
+use crate::measurement::effective_bearing_sigma;
 use nalgebra::{Matrix6, Vector3};
 use vgps_geometry::geometry::{Pose, Ray};
 use vgps_geometry::solvers::refine_pose::refine_pose_with_sigmas;
@@ -279,7 +280,7 @@ pub(crate) fn track(
                     let o = &observations[oi];
                     let c = &candidates[ci];
                     let range = (c.position - pose.translation.vector).norm().max(1.0);
-                    let s = (o.sigma_rad * o.sigma_rad + (c.sigma_m / range).powi(2)).sqrt();
+                    let s = effective_bearing_sigma(o.sigma_rad, c.sigma_m, range);
                     rays.push(o.ray);
                     points.push(c.position);
                     sigmas.push(s);

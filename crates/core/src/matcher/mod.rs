@@ -93,7 +93,14 @@
 //! assert!((fix.world_from_rig.translation.vector - truth.translation.vector).norm() < 1e-6);
 //! ```
 
+mod azimuth;
+mod cells;
+mod conclusion;
 mod db;
+mod fast_math;
+mod pairs;
+mod scoring;
+mod scratch;
 mod search;
 
 pub use db::{DbLandmark, LandmarkDb};
@@ -386,7 +393,7 @@ pub struct MatchOptions {
 impl Default for MatchOptions {
     fn default() -> Self {
         Self {
-            sigma_rad: 0.1_f64.to_radians(),
+            sigma_rad: crate::measurement::DEFAULT_BEARING_SIGMA_RAD,
             inlier_threshold_sigmas: DEFAULT_INLIER_THRESHOLD_SIGMAS,
             visibility_range_m: DEFAULT_VISIBILITY_RANGE_M,
             cell_size_m: DEFAULT_CELL_SIZE_M,

@@ -1,0 +1,930 @@
+//! A cell's data and its pair tables: the candidates seen from the cell's centre, the
+//! quantities tested per candidate pair (the angle with its bound over the cell, and with a
+//! known vertical the side of the pair), and the bit tables of the pairs each detection pair
+//! allows.
+
+use super::LandmarkDb;
+use super::cells::{CellShape, elevation_range};
+use super::fast_math::{FAST_ACOS_MAX_ERROR_RAD, fast_acos};
+use super::scratch::{Cells, bit_set, for_each_bit, recycle_cells, take_cell};
+use super::search::Search;
+use nalgebra::{Vector2, Vector3};
+use vgps_geometry::geometry::try_unit;
+
+/// A landmark as seen from a cell centre.
+pub(super) struct CellCandidate {
+    pub(super) index: usize,
+    pub(super) direction: Vector3<f64>,
+    /// Half-width of the direction's wander over the cell, radians (π when the landmark is
+    /// within the cell's ball).
+    pub(super) wander: f64,
+    /// The survey term [`survey_angle`] of the landmark's survey bound `k σ_m`, radians.
+    pub(super) survey: f64,
+    /// `1 / (range − radius)`, the reciprocal of the least range over the cell's ball
+    /// (`+∞` when the landmark is within the ball), 1/metres.
+    pub(super) inv_near: f64,
+    /// The horizontal distance of the landmark from the cell centre, metres: for the azimuth
+    /// test ([`azimuths_can_meet`]).
+    pub(super) horizontal: f64,
+}
+
+impl CellCandidate {
+    /// A landmark at `v` from a cell centre (`range = |v|` metres, in the unit `direction`),
+    /// for a cell ball of `radius`, with the survey term `survey` (radians).
+    pub(super) fn new(
+        index: usize,
+        v: &Vector3<f64>,
+        direction: Vector3<f64>,
+        range: f64,
+        radius: f64,
+        survey: f64,
+    ) -> Self {
+        let inside = range <= radius;
+        Self {
+            index,
+            direction,
+            horizontal: v.xy().norm(),
+            wander: if inside {
+                std::f64::consts::PI
+            } else {
+                (radius / range).asin()
+            },
+            survey,
+            inv_near: if inside {
+                f64::INFINITY
+            } else {
+                1.0 / (range - radius)
+            },
+        }
+    }
+}
+
+/// How far the direction to a landmark may turn, seen from any point of a cell's ball
+/// (`radius` around a centre `range` metres from the landmark), when the landmark is anywhere
+/// within `survey_m` of its surveyed position: `asin(survey_m / (range − radius))` (the
+/// half-angle of the cone tangent to the survey ball from the nearest viewpoint), `π` when
+/// the survey ball may reach the viewpoint, `0` without a survey error. Radians.
+///
+/// The pair tables and the elevation gates add it per landmark to their bounds, which hold
+/// the surveyed positions seen from the ball.
+pub(super) fn survey_angle(survey_m: f64, range: f64, radius: f64) -> f64 {
+    if survey_m <= 0.0 {
+        return 0.0;
+    }
+    let nearest = range - radius;
+    if nearest > survey_m {
+        (survey_m / nearest).asin()
+    } else {
+        std::f64::consts::PI
+    }
+}
+
+/// The largest change of the angle between the directions to two landmarks `i, j` when the
+/// viewpoint moves from the cell centre to any point of the cell's ball (radius `radius`),
+/// radians.
+///
+/// Two bounds, the smaller is used:
+/// - each direction turns by at most its `wander` (`asin(radius / range)`), so the angle
+///   changes by at most `wander_i + wander_j`;
+/// - the angle's gradient has the norm `|∇φᵢⱼ(x)| = |Lᵢ − Lⱼ| / (ρᵢ(x) ρⱼ(x))` (from
+///   `∇φ = [(uⱼ − cos φ uᵢ)/ρᵢ + (uᵢ − cos φ uⱼ)/ρⱼ] / sin φ` and the law of cosines), and
+///   every point of the segment from the centre to a point of the ball is in the ball, where
+///   `ρ ≥ range − radius`; so the change is at most
+///   `radius · |Lᵢ − Lⱼ| / ((ρᵢ − radius)(ρⱼ − radius))`.
+///
+/// The second is much tighter for two landmarks in similar directions (a row of lamps
+/// along a street, seen end-on): their separation is far less than `ρᵢ + ρⱼ`.
+///
+/// Evaluated with the candidates' reciprocal least ranges (no division per pair): when a
+/// landmark is within the ball its `inv_near` is `+∞`, the product is `+∞` or NaN, and
+/// `f64::min` keeps the first bound.
+pub(super) fn pair_angle_wander(
+    ci: &CellCandidate,
+    cj: &CellCandidate,
+    separation: f64,
+    radius: f64,
+) -> f64 {
+    let sum = ci.wander + cj.wander;
+    sum.min(radius * separation * ci.inv_near * cj.inv_near)
+}
+
+/// A search cell: its candidates seen from the centre and its lazily built pair tables.
+pub(super) struct CellData {
+    pub(super) centre: Vector3<f64>,
+    pub(super) cands: Vec<CellCandidate>,
+    /// What the pair tables test of each candidate pair `(i, j)`, row-major `m × m` (the
+    /// diagonal unused): one record per pair, so a table row reads one contiguous run.
+    /// Computed when a pair table first needs the pair ([`CellData::ensure_pairs`]).
+    pub(super) pairs: Vec<PairValues>,
+    /// Which entries of `pairs` are computed: `m × words` bits, row `i` the `j`.
+    pub(super) pairs_done: Vec<u64>,
+    /// Per candidate: its position in the frame's shared landmarks ([`PairContext`]) and the
+    /// terms of [`det_range`] it brings to a pair.
+    pub(super) slots_shared: Vec<usize>,
+    pub(super) sides: Vec<DetSide>,
+    /// Database indices of the candidates.
+    pub(super) indices: Vec<usize>,
+    /// 64-bit words per candidate bitset.
+    pub(super) words: usize,
+    /// Per detection, the candidates it may be (class, and elevation when up is known):
+    /// `n × words` bits.
+    pub(super) allowed: Vec<u64>,
+    /// Pair tables by ordered detection pair `a · n + b`: `slots[a · n + b]` is the table's
+    /// position in `store` (`NO_TABLE`: not built yet); row `i` of a table (`words` words)
+    /// holds the candidates `j` that detection `b` may be when detection `a` is candidate `i`.
+    pub(super) slots: Vec<u32>,
+    /// The tables, each `m × words` words.
+    pub(super) store: Vec<u64>,
+}
+
+/// A pair table not built yet.
+pub(super) const NO_TABLE: u32 = u32::MAX;
+
+/// Pair tables a cell has room for before its store grows: a median prior frame runs five
+/// detection triples, about a dozen distinct detection pairs.
+pub(super) const INITIAL_PAIR_TABLES: usize = 16;
+
+impl CellData {
+    /// Computes the pair values the table of detections `(a, b)` reads, those of the
+    /// candidates `i` detection `a` may be and `j` detection `b` may be, that are not computed
+    /// yet. Each pair is computed with its candidates in database order and written at
+    /// `(i, j)` and, mirrored, at `(j, i)`: the angle and its bound are symmetric, the side
+    /// of the pair changes sign. A frame's first triples (the cheapest, see `run`) read few
+    /// rows and columns: a roof corner high up may be a tenth of a cell's candidates.
+    pub(super) fn ensure_pairs(
+        &mut self,
+        db: &LandmarkDb,
+        context: &PairContext,
+        a: usize,
+        b: usize,
+    ) {
+        let Self {
+            cands,
+            sides,
+            slots_shared,
+            words,
+            allowed,
+            pairs,
+            pairs_done,
+            ..
+        } = self;
+        let (m, words) = (cands.len(), *words);
+        let allowed_b = &allowed[b * words..(b + 1) * words];
+        for_each_bit(&allowed[a * words..(a + 1) * words], |i| {
+            for (w, &word_b) in allowed_b.iter().enumerate() {
+                let mut missing = word_b & !pairs_done[i * words + w];
+                // The diagonal is never tested (`i ≠ j`).
+                if w == i / 64 {
+                    missing &= !(1u64 << (i % 64));
+                }
+                while missing != 0 {
+                    let j = w * 64 + missing.trailing_zeros() as usize;
+                    missing &= missing - 1;
+                    let (lo, hi) = (i.min(j), i.max(j));
+                    let values = context.values(db, cands, sides, slots_shared, lo, hi);
+                    pairs[lo * m + hi] = values;
+                    pairs[hi * m + lo] = values.mirrored();
+                    bit_set(&mut pairs_done[i * words..(i + 1) * words], j);
+                    bit_set(&mut pairs_done[j * words..(j + 1) * words], i);
+                }
+            }
+        });
+    }
+
+    /// The whole (built) table of the ordered detection pair `key`.
+    pub(super) fn table(&self, key: usize) -> &[u64] {
+        let size = self.cands.len() * self.words;
+        let start = self.slots[key] as usize * size;
+        &self.store[start..start + size]
+    }
+}
+
+/// `det[up, a, b]` for two bearings and a bound on how far the true value (the true up,
+/// within `tol` of `up`, and the true bearings, each within `noise`, radians) may be from
+/// it. With a known vertical this is a rotation invariant: it equals `det[z, uᵢ, uⱼ]` for
+/// the world directions of the two landmarks, i.e. `cos eₐ cos e_b sin(α_b − αₐ)` in
+/// elevations and azimuths. Tilting `up` by at most `tol` changes it by at most
+/// `2 sin(tol/2) |a × b|`, and moving each bearing by at most `noise` (a chord of at most
+/// `noise`) changes it, and the norm of the cross product, by at most `2 noise + noise²`.
+pub(super) fn det_of_bearings(
+    up: &Vector3<f64>,
+    tol: f64,
+    noise: f64,
+    a: &Vector3<f64>,
+    b: &Vector3<f64>,
+) -> (f64, f64) {
+    let cross = a.cross(b);
+    let wobble = 2.0 * noise + noise * noise;
+    let tilt = 2.0 * (0.5 * tol.min(std::f64::consts::PI)).sin();
+    (up.dot(&cross), tilt * (cross.norm() + wobble) + wobble)
+}
+
+/// The range of `det[z, uᵢ(x), uⱼ(x)]` (`u`: unit directions from `x` to the landmarks) over
+/// every point `x` of a cell inside the ball of radius `radius` around `centre` and inside
+/// the vertical cylinder of radius `half_horizontal` around it, with the landmarks anywhere
+/// within their survey bounds `eᵢ, eⱼ` (metres) of `Lᵢ, Lⱼ`.
+///
+/// `det[z, uᵢ, uⱼ] = N(x) / (ρᵢ(x) ρⱼ(x))` with `N(x) = ((Lᵢ − x) × (Lⱼ − Lᵢ))_z`. `N` is
+/// linear in `x` (zero on the vertical plane through both landmarks), so over the cylinder
+/// it stays within `|Lⱼ − Lᵢ|_xy · half_horizontal` of `N(centre)`, and the survey bounds
+/// change it by at most `eᵢ |Lⱼ − x|_xy + eⱼ |Lᵢ − x|_xy + eᵢ eⱼ`; each range `ρ` is within
+/// `radius + e` of its value from the centre. The quotient's range follows by interval
+/// arithmetic, clamped to `[−1, 1]`; `[−1, 1]` when a range may reach 0.
+///
+/// The matcher evaluates it from its pieces ([`DetSide`] per landmark and cell,
+/// [`PairTerms`] per landmark pair) with [`det_range`]; this form is the reference the tests
+/// check.
+#[cfg(test)]
+pub(super) fn det_range_from_above(
+    (li, ei): (&Vector3<f64>, f64),
+    (lj, ej): (&Vector3<f64>, f64),
+    centre: &Vector3<f64>,
+    radius: f64,
+    half_horizontal: f64,
+) -> (f64, f64) {
+    let side = |l: &Vector3<f64>, e: f64| {
+        let v = l - centre;
+        DetSide::new(&v, v.norm(), e, radius, half_horizontal)
+    };
+    let pair = PairTerms::new((li, ei), (lj, ej), half_horizontal);
+    det_range(&side(li, ei), &side(lj, ej), &pair)
+}
+
+/// The pieces of [`det_range`] that depend on one landmark and the cell (computed once per
+/// candidate of a cell instead of once per pair).
+#[derive(Clone, Copy)]
+pub(super) struct DetSide {
+    /// `(L − centre)_xy`, metres.
+    pub(super) from_xy: Vector2<f64>,
+    /// `|(L − centre)_xy| + half_horizontal`: the factor of the other landmark's survey bound
+    /// in the reach of `N`, metres.
+    pub(super) widened: f64,
+    /// The survey bound `e = k σ`, metres.
+    pub(super) survey_m: f64,
+    /// The least range over the cell, `ρ − radius − e` (no bound when `≤ 0`), metres.
+    pub(super) range_lo: f64,
+    /// `1 / range_lo` (meaningful when `range_lo > 0`), 1/metres.
+    pub(super) inv_lo: f64,
+    /// `1 / (ρ + radius + e)`, the reciprocal of the largest range over the cell, 1/metres.
+    pub(super) inv_hi: f64,
+}
+
+impl DetSide {
+    /// `v = L − centre`, `range = |v|`, survey bound `e`.
+    pub(super) fn new(
+        v: &Vector3<f64>,
+        range: f64,
+        e: f64,
+        radius: f64,
+        half_horizontal: f64,
+    ) -> Self {
+        let from_xy = v.xy();
+        Self {
+            from_xy,
+            widened: from_xy.norm() + half_horizontal,
+            survey_m: e,
+            range_lo: range - radius - e,
+            inv_lo: 1.0 / (range - radius - e),
+            inv_hi: 1.0 / (range + radius + e),
+        }
+    }
+}
+
+/// The terms of a landmark pair `(i, j)` (`i` first in database order) that do not depend on
+/// the cell: computed once per frame for the landmarks within reach of a small search area,
+/// shared by every cell (per pair of each cell otherwise).
+#[derive(Clone, Copy)]
+pub(super) struct PairTerms {
+    /// `|Lᵢ − Lⱼ|`, metres (for [`pair_angle_wander`]).
+    pub(super) separation_m: f64,
+    /// `(Lⱼ − Lᵢ)_xy`, metres.
+    pub(super) baseline: Vector2<f64>,
+    /// `|(Lⱼ − Lᵢ)_xy| · half_horizontal`, square metres.
+    pub(super) spread: f64,
+    /// `eᵢ eⱼ`, square metres.
+    pub(super) survey_product: f64,
+}
+
+impl PairTerms {
+    pub(super) fn new(
+        (li, ei): (&Vector3<f64>, f64),
+        (lj, ej): (&Vector3<f64>, f64),
+        half_horizontal: f64,
+    ) -> Self {
+        let baseline = (lj - li).xy();
+        Self {
+            separation_m: (li - lj).norm(),
+            baseline,
+            spread: baseline.norm() * half_horizontal,
+            survey_product: ei * ej,
+        }
+    }
+}
+
+/// `det_range_from_above` from its per-landmark and per-pair pieces: the same expressions
+/// in the same order, so the same bits.
+pub(super) fn det_range(i: &DetSide, j: &DetSide, pair: &PairTerms) -> (f64, f64) {
+    if i.range_lo <= 0.0 || j.range_lo <= 0.0 {
+        return (-1.0, 1.0);
+    }
+    let n = i.from_xy.perp(&pair.baseline);
+    let reach = pair.spread + i.survey_m * j.widened + j.survey_m * i.widened + pair.survey_product;
+    let (n_lo, n_hi) = (n - reach, n + reach);
+    // Reciprocals of the least and the largest products of the two ranges: each end of the
+    // quotient's range divides by the one that makes it extreme for its sign.
+    let inv_den_lo = i.inv_lo * j.inv_lo;
+    let inv_den_hi = i.inv_hi * j.inv_hi;
+    let lo = n_lo * if n_lo >= 0.0 { inv_den_hi } else { inv_den_lo };
+    let hi = n_hi * if n_hi <= 0.0 { inv_den_hi } else { inv_den_lo };
+    (lo.max(-1.0), hi.min(1.0))
+}
+
+/// What the pair tables test of a candidate pair `(i, j)` of a cell (see [`CellData`]).
+#[derive(Clone, Copy)]
+pub(super) struct PairValues {
+    /// The angle between the directions to the two candidates from the cell centre, radians.
+    pub(super) angle: f64,
+    /// How far the angle may be from `angle` over the cell, plus the survey terms and the
+    /// error of [`fast_acos`], radians: [`pair_angle_wander`] `+ surveyᵢ + surveyⱼ`.
+    pub(super) bound: f64,
+    /// With a known vertical, the range of `det[z, uᵢ(x), uⱼ(x)]` (unit directions to the
+    /// landmarks) over the cell ([`det_range_from_above`]); `(−1, 1)` without.
+    pub(super) det: (f64, f64),
+}
+
+impl PairValues {
+    /// The value on the diagonal, which the tables never test (`i ≠ j`).
+    pub(super) const DIAGONAL: Self = Self {
+        angle: 0.0,
+        bound: 0.0,
+        det: (-1.0, 1.0),
+    };
+
+    /// The values of the pair `(j, i)`: the side of the pair changes sign.
+    pub(super) fn mirrored(self) -> Self {
+        let (lo, hi) = self.det;
+        Self {
+            det: (-hi, -lo),
+            ..self
+        }
+    }
+}
+
+/// What computing a cell's [`PairValues`] needs besides the cell: the frame's shared pair
+/// terms, when the area is small enough to have them, and the cells' size.
+pub(super) struct PairContext {
+    /// The [`PairTerms`] of every pair of the landmarks within reach of the whole area, row
+    /// by row of the triangle `(a, b)`, `b > a` (empty: computed per pair).
+    pub(super) shared_pairs: Vec<PairTerms>,
+    /// Start of row `a` of `shared_pairs`: pair `(a, b)` is at `row_start[a] + b − a − 1`.
+    pub(super) row_start: Vec<usize>,
+    /// The cells' ball radius, metres.
+    pub(super) radius: f64,
+    /// The cells' horizontal half-diagonal, metres.
+    pub(super) half_horizontal: f64,
+    /// Whether the vertical is known (the side of a pair is tested).
+    pub(super) with_up: bool,
+}
+
+impl PairContext {
+    /// The values of the candidate pair `(i, j)`, `i < j` (database order) of a cell.
+    pub(super) fn values(
+        &self,
+        db: &LandmarkDb,
+        cands: &[CellCandidate],
+        sides: &[DetSide],
+        slots: &[usize],
+        i: usize,
+        j: usize,
+    ) -> PairValues {
+        let (ci, cj) = (&cands[i], &cands[j]);
+        let (si, sj) = (&sides[i], &sides[j]);
+        let pair = if self.shared_pairs.is_empty() {
+            let (li, lj) = (&db.landmarks()[ci.index], &db.landmarks()[cj.index]);
+            PairTerms::new(
+                (&li.position_in_world, si.survey_m),
+                (&lj.position_in_world, sj.survey_m),
+                self.half_horizontal,
+            )
+        } else {
+            self.shared_pairs[self.row_start[slots[i]] + slots[j] - slots[i] - 1]
+        };
+        PairValues {
+            // The `acos` of the dot product of unit vectors (its error near 0 and π, about
+            // 1e-8 rad, is far below the bearing noise), by a polynomial: libm's `acos` took
+            // an eighth of a prior frame's time.
+            angle: fast_acos(ci.direction.dot(&cj.direction)),
+            bound: pair_angle_wander(ci, cj, pair.separation_m, self.radius)
+                + ci.survey
+                + cj.survey
+                + FAST_ACOS_MAX_ERROR_RAD,
+            // Which side of each other landmark a landmark is, seen from above.
+            det: if self.with_up {
+                det_range(si, sj, &pair)
+            } else {
+                (-1.0, 1.0)
+            },
+        }
+    }
+}
+
+/// Above this many landmark pairs within reach of the whole search area, the [`PairTerms`]
+/// are computed per cell instead of once per frame: a cold start over a city would fill a
+/// table of every pair of its landmarks, mostly never in one cell together.
+pub(super) const MAX_SHARED_PAIRS: usize = 1 << 15;
+
+/// Relative widening of the query for the landmarks within reach of the whole area, so that
+/// it holds every landmark a cell's own query would find despite rounding.
+pub(super) const REACH_SLACK: f64 = 1e-9;
+
+/// The cells with at least three candidates, nearest to the area's centre first, each with
+/// its candidates seen from the centre and per detection the candidates it may be, and what
+/// computing their pair values needs ([`PairContext`]): the pairwise angles, bounds and
+/// (with a known vertical) determinant ranges are computed when a pair table first reads
+/// them ([`CellData::ensure_pairs`]).
+///
+/// Work that does not depend on the cell is done once: the detections' elevations, and for a
+/// small area (a prior) the landmarks within reach of the whole area, gathered contiguously,
+/// with the [`PairTerms`] of each of their pairs; a cell's candidates are then those of
+/// them within its reach, by the same squared-distance test as [`LandmarkDb::within`].
+/// Per candidate, the pieces of the pair quantities that depend on one landmark
+/// ([`DetSide`]) are computed once, so that per pair only the angle ([`fast_acos`]), the
+/// angle bound and the determinant range remain. The bound and the determinant range come
+/// from the same expressions as the direct per-pair formulas ([`pair_angle_wander`],
+/// `det_range_from_above`); the angle is within [`FAST_ACOS_MAX_ERROR_RAD`] of libm's, which
+/// the bound includes.
+#[inline(never)]
+pub(super) fn cell_data(
+    search: &Search,
+    centres: Vec<Vector3<f64>>,
+    area_centre: &Vector3<f64>,
+    area_reach: f64,
+    shape: &CellShape,
+) -> (Cells, PairContext) {
+    let db = search.db;
+    let options = search.options;
+    let up = search.up;
+    let k = options.inlier_threshold_sigmas;
+    let mut keyed: Vec<(f64, Vector3<f64>)> = centres
+        .into_iter()
+        .map(|c| ((c - area_centre).norm(), c))
+        .collect();
+    keyed.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let CellShape {
+        radius,
+        half_horizontal,
+        ..
+    } = *shape;
+    // A cell's candidates: the landmarks within this distance of its centre.
+    let cell_reach = options.visibility_range_m + radius;
+
+    // The landmarks within reach of the whole area (a superset of every cell's candidates),
+    // with the terms of each of their pairs, when they are few enough.
+    let (shared, shared_points, shared_pairs) =
+        shared_landmarks(db, area_centre, area_reach, k, half_horizontal);
+    let use_shared = !shared_points.is_empty();
+    // Start of row `a` of the triangular `shared_pairs` (the pairs `(a, b)`, `b > a`, row by
+    // row): pair `(a, b)` is at `row_start[a] + b − a − 1`.
+    let g = shared_points.len();
+    let row_start: Vec<usize> = (0..g).map(|a| a * (2 * g - a - 1) / 2).collect();
+
+    // Per detection: its elevation, with a known vertical.
+    let elevations: Vec<Option<f64>> = search
+        .directions
+        .iter()
+        .map(|d| up.map(|(u, _)| d.dot(&u).clamp(-1.0, 1.0).asin()))
+        .collect();
+    // Whether a detection has a class (only then are classes compared).
+    let classed = search.detections.iter().any(|d| d.class.is_some());
+    // With a known vertical, the detections in increasing elevation: the detections within a
+    // candidate's elevation gate are a run of them.
+    let mut by_elevation: Vec<(f64, usize)> = elevations
+        .iter()
+        .enumerate()
+        .filter_map(|(d, e)| e.map(|e| (e, d)))
+        .collect();
+    by_elevation.sort_by(|x, y| x.0.total_cmp(&y.0));
+
+    let mut near = Vec::new();
+    let mut cell_data = Cells(Vec::new());
+    for (_, centre) in &keyed {
+        // The candidates, seen from the centre, in increasing database index; per candidate
+        // its position in `shared` and its [`DetSide`].
+        let mut cell = take_cell();
+        let (cands, slots, sides) = (&mut cell.cands, &mut cell.slots_shared, &mut cell.sides);
+        cands.clear();
+        slots.clear();
+        sides.clear();
+        let mut add = |index: usize, slot: usize, position: &Vector3<f64>| {
+            let v = position - centre;
+            let range = v.norm();
+            let Some(direction) = try_unit(&v) else {
+                return;
+            };
+            let e = k * db.landmarks()[index].sigma_m;
+            cands.push(CellCandidate::new(
+                index,
+                &v,
+                direction,
+                range,
+                radius,
+                survey_angle(e, range, radius),
+            ));
+            slots.push(slot);
+            sides.push(DetSide::new(&v, range, e, radius, half_horizontal));
+        };
+        if use_shared {
+            // `LandmarkDb::within`'s test: the squared distance (summed x, y, z) against
+            // the squared radius.
+            let limit = cell_reach * cell_reach;
+            for (slot, (&index, p)) in shared.iter().zip(&shared_points).enumerate() {
+                let d = p - centre;
+                if d.x * d.x + d.y * d.y + d.z * d.z <= limit {
+                    add(index, slot, p);
+                }
+            }
+        } else {
+            db.within(centre, cell_reach, &mut near);
+            for &index in &near {
+                add(index, 0, &db.landmarks()[index].position_in_world);
+            }
+        }
+        #[cfg(debug_assertions)]
+        if use_shared {
+            db.within(centre, cell_reach, &mut near);
+            near.retain(|&index| {
+                try_unit(&(db.landmarks()[index].position_in_world - centre)).is_some()
+            });
+            let found: Vec<usize> = cands.iter().map(|c| c.index).collect();
+            debug_assert_eq!(
+                found, near,
+                "the candidates of a cell from the shared landmarks"
+            );
+        }
+        if cands.len() < 3 {
+            recycle_cells(&mut vec![cell]);
+            continue;
+        }
+        prepare_cell(search, &mut cell, centre, shape, classed, &by_elevation);
+        cell_data.push(cell);
+    }
+    let context = PairContext {
+        shared_pairs,
+        row_start,
+        radius,
+        half_horizontal,
+        with_up: up.is_some(),
+    };
+    (cell_data, context)
+}
+
+/// The landmarks within reach of the whole area (a superset of every cell's candidates),
+/// their positions and the [`PairTerms`] of each of their pairs (survey bounds `k σ_m`),
+/// when they are at most [`MAX_SHARED_PAIRS`] pairs; all empty otherwise.
+fn shared_landmarks(
+    db: &LandmarkDb,
+    area_centre: &Vector3<f64>,
+    area_reach: f64,
+    k: f64,
+    half_horizontal: f64,
+) -> (Vec<usize>, Vec<Vector3<f64>>, Vec<PairTerms>) {
+    let mut shared: Vec<usize> = Vec::new();
+    let mut shared_points: Vec<Vector3<f64>> = Vec::new();
+    let mut shared_pairs: Vec<PairTerms> = Vec::new();
+    if area_reach.is_finite() {
+        db.within(
+            area_centre,
+            area_reach * (1.0 + REACH_SLACK) + REACH_SLACK,
+            &mut shared,
+        );
+        let g = shared.len();
+        if g * g.saturating_sub(1) / 2 <= MAX_SHARED_PAIRS {
+            shared_points = shared
+                .iter()
+                .map(|&index| db.landmarks()[index].position_in_world)
+                .collect();
+            shared_pairs.reserve(g * g.saturating_sub(1) / 2);
+            for (a, &index_a) in shared.iter().enumerate() {
+                let la = &db.landmarks()[index_a];
+                for &index_b in &shared[a + 1..] {
+                    let lb = &db.landmarks()[index_b];
+                    shared_pairs.push(PairTerms::new(
+                        (&la.position_in_world, k * la.sigma_m),
+                        (&lb.position_in_world, k * lb.sigma_m),
+                        half_horizontal,
+                    ));
+                }
+            }
+        } else {
+            shared.clear();
+        }
+    }
+    (shared, shared_points, shared_pairs)
+}
+
+/// Sets up a cell whose candidates are gathered: per detection the candidates it may be
+/// (class, and with a known vertical the elevation gate, a run of `by_elevation`), its
+/// landmark indices and centre, and its pair buffers emptied (stale pair values are never
+/// read: `pairs_done`).
+fn prepare_cell(
+    search: &Search,
+    cell: &mut CellData,
+    centre: &Vector3<f64>,
+    shape: &CellShape,
+    classed: bool,
+    by_elevation: &[(f64, usize)],
+) {
+    let db = search.db;
+    let up = search.up;
+    let n = search.detections.len();
+    let CellShape {
+        half_horizontal,
+        half_vertical,
+        ..
+    } = *shape;
+    let cands = &cell.cands;
+    let m = cands.len();
+    let words = m.div_ceil(64);
+    let mut allowed = std::mem::take(&mut cell.allowed);
+    allowed.clear();
+    allowed.resize(n * words, 0);
+    // Per candidate: its elevation range over the cell, widened by the tilt tolerance,
+    // the bearing noise and the survey error.
+    // CellCandidate by candidate, its bit in the row of each detection it may be: with a
+    // known vertical those within its elevation gate (a run of `by_elevation`), else all.
+    for (i, cand) in cands.iter().enumerate() {
+        let (word, bit) = (i / 64, 1u64 << (i % 64));
+        let mut set = |d: usize| {
+            if !classed || search.compatible(d, cand.index) {
+                allowed[d * words + word] |= bit;
+            }
+        };
+        match up {
+            Some((_, tol)) => {
+                let v = db.landmarks()[cand.index].position_in_world - centre;
+                let (lo, hi) = elevation_range(&v, half_horizontal, half_vertical);
+                let margin = tol + search.noise + cand.survey;
+                let (lo, hi) = (lo - margin, hi + margin);
+                let first = by_elevation.partition_point(|&(e, _)| e < lo);
+                for &(e, d) in &by_elevation[first..] {
+                    if e > hi {
+                        break;
+                    }
+                    set(d);
+                }
+            }
+            None => (0..n).for_each(&mut set),
+        }
+    }
+    cell.indices.clear();
+    cell.indices.extend(cands.iter().map(|c| c.index));
+    cell.centre = *centre;
+    cell.words = words;
+    cell.allowed = allowed;
+    // Stale pair values are never read (`pairs_done`).
+    if cell.pairs.len() < m * m {
+        cell.pairs.resize(m * m, PairValues::DIAGONAL);
+    }
+    cell.pairs_done.clear();
+    cell.pairs_done.resize(m * words, 0);
+    cell.slots.clear();
+    cell.slots.resize(n * n, NO_TABLE);
+    cell.store.clear();
+    cell.store.reserve(m * words * INITIAL_PAIR_TABLES);
+}
+
+impl Search<'_> {
+    /// With a known vertical: `det[up, b_a, b_b]` and how far the true value may be from it
+    /// ([`det_of_bearings`]).
+    pub(super) fn pair_det(&self, a: usize, b: usize) -> Option<(f64, f64)> {
+        let (up, tol) = self.up?;
+        Some(det_of_bearings(
+            &up,
+            tol,
+            self.noise,
+            &self.directions[a],
+            &self.directions[b],
+        ))
+    }
+
+    /// Builds the pair table of the ordered detection pair `(a, b)` in a cell (once).
+    pub(super) fn ensure_table(
+        &self,
+        cell: &mut CellData,
+        context: &PairContext,
+        a: usize,
+        b: usize,
+    ) {
+        let n = self.detections.len();
+        let key = a * n + b;
+        if cell.slots[key] != NO_TABLE {
+            return;
+        }
+        cell.ensure_pairs(self.db, context, a, b);
+        let m = cell.cands.len();
+        let words = cell.words;
+        // Every pair the table reads is computed (the pair buffers hold stale values).
+        #[cfg(debug_assertions)]
+        for_each_bit(&cell.allowed[a * words..(a + 1) * words], |i| {
+            for_each_bit(&cell.allowed[b * words..(b + 1) * words], |j| {
+                let done = cell.pairs_done[i * words + j / 64] >> (j % 64) & 1 == 1;
+                debug_assert!(i == j || done, "pair ({i}, {j}) read before it is computed");
+            });
+        });
+        let theta = self.angles[key];
+        let tol = 2.0 * self.noise;
+        let pair_det = self.pair_det(a, b);
+        let start = cell.store.len();
+        cell.slots[key] = (start / (m * words)) as u32;
+        cell.store.resize(start + m * words, 0);
+
+        let table = &mut cell.store[start..];
+        let allowed_a = &cell.allowed[a * words..(a + 1) * words];
+        let allowed_b = &cell.allowed[b * words..(b + 1) * words];
+        // Each test is evaluated whole and its outcome OR-ed in as a bit: about one pair in
+        // eight passes, at random, so a branch per test would be mispredicted often.
+        for_each_bit(allowed_a, |i| {
+            let row = &mut table[i * words..(i + 1) * words];
+            let pairs = &cell.pairs[i * m..(i + 1) * m];
+            match pair_det {
+                Some((d, margin)) => for_each_bit(allowed_b, |j| {
+                    let p = &pairs[j];
+                    let (lo, hi) = p.det;
+                    let pass = (i != j)
+                        & ((theta - p.angle).abs() <= tol + p.bound)
+                        & (d + margin >= lo)
+                        & (d - margin <= hi);
+                    row[j / 64] |= u64::from(pass) << (j % 64);
+                }),
+                None => for_each_bit(allowed_b, |j| {
+                    let p = &pairs[j];
+                    let pass = (i != j) & ((theta - p.angle).abs() <= tol + p.bound);
+                    row[j / 64] |= u64::from(pass) << (j % 64);
+                }),
+            }
+        });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::RngExt;
+    use vgps_geometry::geometry::angle_between;
+
+    #[test]
+    fn pair_angle_wander_bounds_every_point_of_the_ball() {
+        let mut r = vgps_geometry::synthetic::rng(21);
+        let mut tighter = 0;
+        for _ in 0..2_000 {
+            let radius = r.random_range(0.5..10.0);
+            let li = Vector3::new(
+                r.random_range(-80.0..80.0),
+                r.random_range(-80.0..80.0),
+                r.random_range(-5.0..30.0),
+            );
+            // Half the second landmarks near the first (a row of lamps), half anywhere.
+            let lj = if r.random::<bool>() {
+                li + Vector3::new(
+                    r.random_range(-30.0..30.0),
+                    r.random_range(-3.0..3.0),
+                    r.random_range(-1.0..1.0),
+                )
+            } else {
+                Vector3::new(
+                    r.random_range(-80.0..80.0),
+                    r.random_range(-80.0..80.0),
+                    r.random_range(-5.0..30.0),
+                )
+            };
+            let candidate = |l: &Vector3<f64>| {
+                let range = l.norm();
+                CellCandidate::new(0, l, l / range, range, radius, 0.0)
+            };
+            let (ci, cj) = (candidate(&li), candidate(&lj));
+            let bound = pair_angle_wander(&ci, &cj, (li - lj).norm(), radius);
+            if bound < ci.wander + cj.wander {
+                tighter += 1;
+            }
+            let phi = angle_between(&li, &lj);
+            for _ in 0..50 {
+                let x = vgps_geometry::synthetic::random_unit_vector(&mut r)
+                    * radius
+                    * r.random_range(0.0..1.0f64).cbrt();
+                let moved = angle_between(&(li - x), &(lj - x));
+                assert!(
+                    (moved - phi).abs() <= bound + 1e-12,
+                    "{moved} vs {phi}: bound {bound}"
+                );
+            }
+        }
+        // The gradient bound is the tighter one for most pairs.
+        assert!(tighter > 1_000, "{tighter}");
+    }
+
+    #[test]
+    fn survey_angle_bounds_every_survey_error_seen_from_the_ball() {
+        let mut r = vgps_geometry::synthetic::rng(22);
+        let mut useful = 0;
+        for _ in 0..2_000 {
+            let radius = r.random_range(0.5..10.0);
+            let survey = r.random_range(0.01..2.0);
+            let l =
+                vgps_geometry::synthetic::random_unit_vector(&mut r) * r.random_range(0.0..60.0);
+            let bound = survey_angle(survey, l.norm(), radius);
+            useful += usize::from(bound < 0.1);
+            for _ in 0..50 {
+                let x = vgps_geometry::synthetic::random_unit_vector(&mut r)
+                    * radius
+                    * r.random_range(0.0..1.0f64).cbrt();
+                let moved = l + vgps_geometry::synthetic::random_unit_vector(&mut r)
+                    * survey
+                    * r.random_range(0.0..1.0f64).cbrt();
+                let turn = angle_between(&(moved - x), &(l - x));
+                assert!(turn <= bound + 1e-12, "{turn} > {bound}");
+            }
+        }
+        assert!(useful > 1_000, "{useful}");
+        assert_eq!(survey_angle(0.0, 5.0, 8.0), 0.0);
+    }
+
+    #[test]
+    fn det_range_from_above_holds_over_the_cell_and_the_survey_bounds() {
+        let mut r = vgps_geometry::synthetic::rng(22);
+        let (mut narrow, mut tested) = (0, 0);
+        let point = |r: &mut rand_chacha::ChaCha8Rng| {
+            Vector3::new(
+                r.random_range(-60.0..60.0),
+                r.random_range(-60.0..60.0),
+                r.random_range(0.0..30.0),
+            )
+        };
+        for _ in 0..2_000 {
+            let (li, lj) = (point(&mut r), point(&mut r));
+            let (ei, ej) = (r.random_range(0.0..0.5), r.random_range(0.0..0.5));
+            let (half, half_z): (f64, f64) = (r.random_range(0.5..10.0), r.random_range(0.0..2.0));
+            let radius = (half * half + half_z * half_z).sqrt();
+            let (lo, hi) =
+                det_range_from_above((&li, ei), (&lj, ej), &Vector3::zeros(), radius, half);
+            assert!(lo <= hi);
+            if hi - lo < 0.5 {
+                narrow += 1;
+            }
+            for _ in 0..50 {
+                let a = r.random_range(0.0..std::f64::consts::TAU);
+                let rho = half * r.random_range(0.0..1.0f64).sqrt();
+                let x = Vector3::new(
+                    rho * a.cos(),
+                    rho * a.sin(),
+                    r.random_range(-half_z..=half_z),
+                );
+                let shift = |r: &mut rand_chacha::ChaCha8Rng, e: f64| {
+                    vgps_geometry::synthetic::random_unit_vector(r) * e * r.random_range(0.0..=1.0)
+                };
+                let (pi, pj) = (li + shift(&mut r, ei), lj + shift(&mut r, ej));
+                let (ui, uj) = ((pi - x).normalize(), (pj - x).normalize());
+                let det = Vector3::z().dot(&ui.cross(&uj));
+                assert!(
+                    det >= lo - 1e-12 && det <= hi + 1e-12,
+                    "{det} not in [{lo}, {hi}]"
+                );
+                tested += 1;
+            }
+        }
+        assert!(narrow > 1_000, "{narrow}");
+        assert!(tested == 100_000);
+    }
+
+    #[test]
+    fn det_of_bearings_bounds_every_tilt_and_noise_within_the_tolerances() {
+        let mut r = vgps_geometry::synthetic::rng(23);
+        for _ in 0..2_000 {
+            let up = vgps_geometry::synthetic::random_unit_vector(&mut r);
+            let tol = r.random_range(0.0..0.2);
+            let noise = r.random_range(0.0..0.01);
+            let a = vgps_geometry::synthetic::random_unit_vector(&mut r);
+            let b = vgps_geometry::synthetic::random_unit_vector(&mut r);
+            let (value, margin) = det_of_bearings(&up, tol, noise, &a, &b);
+            // A direction within `angle` of `v`.
+            let turn = |r: &mut rand_chacha::ChaCha8Rng, v: &Vector3<f64>, angle: f64| {
+                let axis = vgps_geometry::synthetic::random_unit_vector(r);
+                match vgps_geometry::geometry::try_unit(&v.cross(&axis)) {
+                    Some(w) => {
+                        let t = angle * r.random_range(0.0..=1.0);
+                        v * t.cos() + w * t.sin()
+                    }
+                    None => *v,
+                }
+            };
+            for _ in 0..50 {
+                let true_up = turn(&mut r, &up, tol);
+                let (ta, tb) = (turn(&mut r, &a, noise), turn(&mut r, &b, noise));
+                let det = true_up.dot(&ta.cross(&tb));
+                assert!(
+                    (det - value).abs() <= margin + 1e-12,
+                    "{det} vs {value} ± {margin}"
+                );
+            }
+        }
+    }
+}
