@@ -69,7 +69,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let name = args
         .first()
-        .ok_or_else(|| format!("usage: fuzz_mutate TARGET [EXECUTIONS] [SEED]"))?;
+        .ok_or("usage: fuzz_mutate TARGET [EXECUTIONS] [SEED]")?;
     let executions: u64 = args.get(1).map_or(Ok(1_000_000), |s| s.parse())?;
     let mut rng = Rng(args.get(2).map_or(Ok(1), |s| s.parse())?);
     let body = vgps_fuzz_bodies::TARGETS
@@ -82,7 +82,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for entry in std::fs::read_dir(root.join("corpus").join(name))? {
         pool.push(std::fs::read(entry?.path())?);
     }
-    if !(!pool.is_empty()) {
+    if pool.is_empty() {
         return Err(format!("empty corpus for {name}").into());
     }
     let seeds = pool.len();

@@ -55,9 +55,8 @@ fn zune_rgb(bytes: &[u8]) -> Result<image::GrayImage, Box<dyn std::error::Error>
     let options = DecoderOptions::default().jpeg_set_out_colorspace(ColorSpace::RGB);
     let mut d = zune_jpeg::JpegDecoder::new_with_options(ZCursor::new(bytes), options);
     let pixels = d.decode().map_err(|e| format!("{e}"))?;
-    let (w, h) = d.dimensions().ok_or_else(|| format!("no size"))?;
-    let rgb =
-        image::RgbImage::from_raw(w as u32, h as u32, pixels).ok_or_else(|| format!("size"))?;
+    let (w, h) = d.dimensions().ok_or("no size")?;
+    let rgb = image::RgbImage::from_raw(w as u32, h as u32, pixels).ok_or("size")?;
     Ok(to_luma8(&rgb.into()))
 }
 
@@ -71,7 +70,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let dir = PathBuf::from(
         args.first()
-            .ok_or_else(|| format!("usage: jpeg_timing DIR [FRAMES] [REPEATS]"))?,
+            .ok_or("usage: jpeg_timing DIR [FRAMES] [REPEATS]")?,
     );
     let frames: usize = args.get(1).map_or(Ok(5), |s| s.parse())?;
     let repeats: usize = args.get(2).map_or(Ok(7), |s| s.parse())?;
