@@ -5,6 +5,7 @@
 //! directory. Criterion reports frames per second; the target of issue #7 is ≥ 2,000.
 use clap::Parser;
 use criterion::{Criterion, Throughput};
+use vgps::cli::ReplaySettings;
 use vgps::cli::demo::DEMO_SEED;
 use vgps::cli::replay::{ReplayArgs, run};
 use vgps::simulate::{Preset, Scenario, simulate};
@@ -30,13 +31,14 @@ pub fn benches(c: &mut Criterion) {
         out_dir.as_os_str(),
         "--quiet".as_ref(),
     ]);
+    let settings = ReplaySettings::try_from(replay.args).expect("valid settings");
     let mut group = c.benchmark_group("replay");
     group.sample_size(10);
     group.throughput(Throughput::Elements(drive.frames.len() as u64));
     group.bench_function("reference_drive_end_to_end", |b| {
         b.iter(|| {
             let (mut out, mut err) = (Vec::new(), Vec::new());
-            run(&replay.args, &mut out, &mut err).expect("replay");
+            run(&settings, &mut out, &mut err).expect("replay");
             std::hint::black_box((out, err))
         })
     });

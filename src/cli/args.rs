@@ -1,6 +1,6 @@
-//! The command-line grammar (clap derive) and its one-time validation into settings.
+//! The command-line grammar (clap derive); [`super::settings`] validates it once into
+//! settings.
 
-use super::CliError;
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
 use vgps_geometry::geo::Geodetic;
@@ -132,97 +132,19 @@ fn parse_prior(text: &str) -> Result<PriorArg, String> {
     Ok(PriorArg { position, radius_m })
 }
 
-fn parse_positive(text: &str) -> Result<f64, String> {
+/// A positive finite number (`--sigma-deg`, `--pixel-sigma-px`, …).
+pub(super) fn parse_positive(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {
         Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
         _ => Err(format!("`{text}` is not a positive finite number")),
     }
 }
 
-fn parse_non_negative(text: &str) -> Result<f64, String> {
+/// A non-negative finite number (`--up-tolerance-deg`, `--smooth-s`, …).
+pub(super) fn parse_non_negative(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {
         Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
         _ => Err(format!("`{text}` is not a non-negative finite number")),
-    }
-}
-
-/// Validated settings of `vgps locate`.
-#[derive(Clone, Debug, PartialEq)]
-pub struct LocateSettings {
-    /// The landmarks file.
-    pub landmarks: PathBuf,
-    /// The observations file.
-    pub observations: PathBuf,
-    /// The rig calibration, if any (turns pixel observations into rays).
-    pub calibration: Option<PathBuf>,
-    /// The position prior, if any.
-    pub prior: Option<PriorArg>,
-    /// The matcher's cold-start region, if any.
-    pub region: Option<PriorArg>,
-    /// The matcher's known-vertical tolerance, radians, if any.
-    pub up_tolerance_rad: Option<f64>,
-    /// Bearing standard deviation per tangent axis, radians.
-    pub sigma_rad: f64,
-}
-
-/// Validated settings of `vgps triangulate`.
-#[derive(Clone, Debug, PartialEq)]
-pub struct TriangulateSettings {
-    /// The rays file.
-    pub rays: PathBuf,
-    /// Default direction standard deviation per tangent axis, radians.
-    pub sigma_ang_rad: f64,
-    /// Default observer position standard deviation per axis, metres.
-    pub sigma_pos_m: f64,
-}
-
-/// What to run, with validated settings.
-#[derive(Debug)]
-pub enum Settings {
-    /// `vgps locate`.
-    Locate(LocateSettings),
-    /// `vgps triangulate`.
-    Triangulate(TriangulateSettings),
-    /// `vgps demo`.
-    Demo(super::demo::DemoArgs),
-    /// `vgps calib …` (validated by its own module).
-    Calib(super::calib::CalibArgs),
-    /// `vgps simulate`.
-    Simulate(super::simulate::SimulateArgs),
-    /// `vgps replay`.
-    Replay(super::replay::ReplayArgs),
-    /// `vgps detect`.
-    Detect(super::detect::DetectArgs),
-    /// `vgps map`.
-    Map(super::map::MapArgs),
-}
-
-impl TryFrom<Cli> for Settings {
-    type Error = CliError;
-
-    fn try_from(cli: Cli) -> Result<Self, CliError> {
-        Ok(match cli.command {
-            Command::Locate(a) => Settings::Locate(LocateSettings {
-                landmarks: a.landmarks,
-                observations: a.observations,
-                calibration: a.calibration,
-                prior: a.prior,
-                region: a.region,
-                up_tolerance_rad: a.up_tolerance_deg.map(f64::to_radians),
-                sigma_rad: a.sigma_deg.to_radians(),
-            }),
-            Command::Triangulate(a) => Settings::Triangulate(TriangulateSettings {
-                rays: a.rays,
-                sigma_ang_rad: a.sigma_deg.to_radians(),
-                sigma_pos_m: a.sigma_pos_m,
-            }),
-            Command::Demo(a) => Settings::Demo(a),
-            Command::Calib(a) => Settings::Calib(a),
-            Command::Simulate(a) => Settings::Simulate(a),
-            Command::Replay(a) => Settings::Replay(a),
-            Command::Detect(a) => Settings::Detect(a),
-            Command::Map(a) => Settings::Map(a),
-        })
     }
 }
 
@@ -250,44 +172,5 @@ mod tests {
         assert!(parse_prior("91,0,0,1").unwrap_err().contains("LAT 91"));
         assert!(parse_prior("1,0,0,0").unwrap_err().contains("RADIUS_M 0"));
         assert!(parse_prior("1,NaN,0,3").unwrap_err().contains("LON `NaN`"));
-    }
-
-    #[test]
-    fn settings_are_validated_once() {
-        let cli = Cli::try_parse_from([
-            "vgps",
-            "locate",
-            "--landmarks",
-            "L.csv",
-            "--observations",
-            "O.csv",
-            "--sigma-deg",
-            "0.5",
-        ])
-        .unwrap();
-        let Settings::Locate(s) = Settings::try_from(cli).unwrap() else {
-            panic!("not locate")
-        };
-        assert!((s.sigma_rad - 0.5_f64.to_radians()).abs() < 1e-15);
-        assert_eq!(s.prior, None);
-        let cli = Cli::try_parse_from([
-            "vgps",
-            "locate",
-            "--landmarks",
-            "L",
-            "--observations",
-            "O",
-            "--calibration",
-            "c",
-        ])
-        .unwrap();
-        let Settings::Locate(s) = Settings::try_from(cli).unwrap() else {
-            panic!("not locate")
-        };
-        assert_eq!(s.calibration, Some(PathBuf::from("c")));
-        assert!(
-            Cli::try_parse_from(["vgps", "triangulate", "--rays", "R", "--sigma-deg", "-1"])
-                .is_err()
-        );
     }
 }

@@ -13,7 +13,8 @@
 //! drive. `--no-images` skips it (and its 0.3 GB of PNGs).
 
 use super::CliError;
-use super::replay::{OutputFormat, ReplayArgs};
+use super::replay::OutputFormat;
+use super::settings::{DemoSettings, ReplaySettings, strictness, thread_count};
 use std::io::Write;
 use std::path::PathBuf;
 use vgps_sim::simulate::{Preset, Scenario, simulate};
@@ -46,13 +47,17 @@ pub struct DemoArgs {
 ///
 /// # Errors
 /// [`CliError::Output`] when the drive or the report cannot be written; the replay's errors.
-pub fn run(args: &DemoArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<(), CliError> {
-    let drive_dir = args.out.join("reference");
+pub fn run(
+    settings: &DemoSettings,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Result<(), CliError> {
+    let drive_dir = settings.out.join("reference");
     let started = std::time::Instant::now();
     let drive = simulate(&Scenario::preset(Preset::Reference, DEMO_SEED))
         .map_err(|e| CliError::Internal(format!("the reference drive: {e}")))?;
     drive.write(&drive_dir).map_err(drive_write_error)?;
-    if args.format == OutputFormat::Text {
+    if settings.format == OutputFormat::Text {
         writeln!(
             out,
             "vgps demo: simulated the reference drive ({} frames, {:.0} m) into {} in {:.1} s; replaying…",
@@ -62,12 +67,17 @@ pub fn run(args: &DemoArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
             started.elapsed().as_secs_f64()
         )?;
     }
-    let replay = replay_args(drive_dir, args.out.join("replay"), args.format, false);
+    let replay = replay_settings(
+        drive_dir,
+        settings.out.join("replay"),
+        settings.format,
+        false,
+    );
     super::replay::run(&replay, out, err)?;
-    if !args.no_images {
-        run_images(args, out, err)?;
+    if settings.images {
+        run_images(settings, out, err)?;
     }
-    if args.format == OutputFormat::Text {
+    if settings.format == OutputFormat::Text {
         writeln!(
             out,
             "vgps demo: done in {:.1} s",
@@ -83,8 +93,12 @@ pub fn run(args: &DemoArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<
 /// surveys every landmark and has no survey gap: with the short preset's 75 % survey and
 /// its gap, too few surveyed lamps are in view to map surrogates from lamps alone before
 /// the gap.
-fn run_images(args: &DemoArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<(), CliError> {
-    let night = args.out.join("night");
+fn run_images(
+    settings: &DemoSettings,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Result<(), CliError> {
+    let night = settings.out.join("night");
     let started = std::time::Instant::now();
     let mut scenario = Scenario::preset(Preset::Short, DEMO_SEED);
     scenario.length_m = DEMO_IMAGES_LENGTH_M;
@@ -103,7 +117,7 @@ fn run_images(args: &DemoArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resu
     )
     .map_err(drive_write_error)?;
     let mut sink = std::io::sink();
-    let summary: &mut dyn Write = if args.format == OutputFormat::Text {
+    let summary: &mut dyn Write = if settings.format == OutputFormat::Text {
         out
     } else {
         &mut sink
@@ -117,27 +131,32 @@ fn run_images(args: &DemoArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resu
         night.display(),
         started.elapsed().as_secs_f64()
     )?;
-    let replay = replay_args(night, args.out.join("night-replay"), args.format, true);
+    let replay = replay_settings(
+        night,
+        settings.out.join("night-replay"),
+        settings.format,
+        true,
+    );
     super::replay::run(&replay, summary, err)
 }
 
-/// `vgps replay` with its defaults, as the demo runs it.
-fn replay_args(
+/// `vgps replay` with its defaults and `--strict`, as the demo runs it.
+fn replay_settings(
     drive: PathBuf,
-    out: PathBuf,
+    out_dir: PathBuf,
     format: OutputFormat,
     from_images: bool,
-) -> ReplayArgs {
-    ReplayArgs {
+) -> ReplaySettings {
+    ReplaySettings {
         drive,
-        out: Some(out),
-        threads: None,
+        out_dir,
+        threads: thread_count(None),
         quiet: false,
         format,
-        strict: true,
+        strictness: strictness(true),
         pixel_sigma_px: vgps_core::localizer::DEFAULT_PIXEL_SIGMA_PX,
-        no_surrogates: false,
-        no_gnss_prior: false,
+        surrogates: true,
+        gnss_prior: true,
         from_images,
         image_size: None,
         gnss: Default::default(),

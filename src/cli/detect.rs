@@ -11,13 +11,13 @@
 //! Frames are decoded and detected on `--threads` scoped threads taking frames in turn;
 //! the file lists the frames in the drive's order whatever the number of threads.
 
-use super::CliError;
+use super::{CliError, DetectSettings};
 use crate::imaging::{FrameImageResult, ImageProblemKind, LampDetector, detect_frame_images};
 use std::collections::BTreeMap;
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use vgps_replay::drive::{Detection, Drive, Strictness, detections_to_csv, write_text};
+use vgps_replay::drive::{Detection, Drive, detections_to_csv, write_text};
 
 /// The default output file name when the drive has no detections file yet.
 pub const DEFAULT_OUT_NAME: &str = "detections.csv";
@@ -71,16 +71,15 @@ pub struct DetectSummary {
 /// [`CliError::Calibration`] (exit 2) when the drive cannot be opened or names no image;
 /// [`CliError::Output`] (exit 1) when the output cannot be written. Bad images are reported
 /// per frame on `err` and counted, not errors.
-pub fn run(args: &DetectArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<(), CliError> {
+pub fn run(
+    settings: &DetectSettings,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Result<(), CliError> {
     let started = std::time::Instant::now();
-    let strictness = if args.strict {
-        Strictness::Strict
-    } else {
-        Strictness::Lenient
-    };
-    let mut drive =
-        Drive::open(&args.drive, strictness).map_err(|e| CliError::Calibration(e.to_string()))?;
-    if let Some(note) = super::image_size::resolve(&mut drive, args.image_size)? {
+    let mut drive = Drive::open(&settings.drive, settings.strictness)
+        .map_err(|e| CliError::Calibration(e.to_string()))?;
+    if let Some(note) = super::image_size::resolve(&mut drive, settings.image_size)? {
         let _ = writeln!(err, "vgps: {note}");
     }
     for w in drive.warnings() {
@@ -90,33 +89,30 @@ pub fn run(args: &DetectArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resul
     if !frames.iter().any(|f| f.images.iter().any(Option::is_some)) {
         return Err(CliError::Calibration(format!(
             "{}: no frame names an image (the frames file `{}` has no image columns)",
-            args.drive.display(),
+            settings.drive.display(),
             drive.manifest().frames
         )));
     }
-    let out_path = match &args.out {
+    let out_path = match &settings.out {
         Some(p) => p.clone(),
         None => {
-            let default = args.drive.join(DEFAULT_OUT_NAME);
+            let default = settings.drive.join(DEFAULT_OUT_NAME);
             if drive.manifest().detections.is_none() && !default.exists() {
                 default
             } else {
-                let fallback = args.drive.join(FALLBACK_OUT_NAME);
+                let fallback = settings.drive.join(FALLBACK_OUT_NAME);
                 let _ = writeln!(
                     err,
                     "vgps: note: {} already has a detections file; writing {} (use --out to choose)",
-                    args.drive.display(),
+                    settings.drive.display(),
                     fallback.display()
                 );
                 fallback
             }
         }
     };
-    let threads = args
-        .threads
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
-        .clamp(1, frames.len().max(1));
-    let bar = (!args.quiet && std::io::stderr().is_terminal()).then(|| {
+    let threads = settings.threads.clamp(1, frames.len().max(1));
+    let bar = (!settings.quiet && std::io::stderr().is_terminal()).then(|| {
         let bar = indicatif::ProgressBar::new(frames.len() as u64);
         bar.set_style(
             indicatif::ProgressStyle::with_template(
@@ -181,7 +177,7 @@ pub fn run(args: &DetectArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resul
     summary.detections = detections.len();
     write_text(&out_path, &detections_to_csv(&detections))
         .map_err(|e| CliError::Output(std::io::Error::other(e.to_string())))?;
-    if !args.quiet {
+    if !settings.quiet {
         let seconds = started.elapsed().as_secs_f64();
         writeln!(
             out,

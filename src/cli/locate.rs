@@ -193,97 +193,20 @@ pub fn locate(
         landmarks,
         landmarks_path,
         observations,
-        observations_path,
-        rig,
+        observations_path: _,
+        rig: _,
         prior,
         region,
         up_tolerance_rad,
         sigma_rad,
     } = *input;
-    let mut geodetic: HashMap<&str, (Geodetic, f64)> = HashMap::new();
-    for l in landmarks {
-        let g = Geodetic::try_new(l.lat_deg, l.lon_deg, l.alt_m).map_err(|e| {
-            InputError::field(
-                landmarks_path,
-                l.line,
-                vgps_io::geodetic_column(&e),
-                e.to_string(),
-            )
-        })?;
-        geodetic.insert(&l.id, (g, l.sigma_m.unwrap_or(0.0)));
-    }
+    let geodetic = landmark_positions(landmarks, landmarks_path)?;
     for (option, area) in [("--prior", prior), ("--region", region)] {
-        let Some(area) = area else { continue };
-        let centre = area.position.to_ecef();
-        let nearest = geodetic
-            .values()
-            .map(|(g, _)| (g.to_ecef() - centre).norm())
-            .fold(f64::INFINITY, f64::min);
-        if nearest.is_finite() && nearest > area.radius_m + MAX_SEARCH_GAP_TO_LANDMARKS_M {
-            return Err(CliError::Calibration(format!(
-                "{option} LAT,LON {},{}: the nearest landmark of {} is {:.0} km away \
-                 (more than {:.0} km beyond RADIUS_M {} m); are the coordinates in degrees?",
-                area.position.lat_deg,
-                area.position.lon_deg,
-                landmarks_path.display(),
-                nearest / 1000.0,
-                MAX_SEARCH_GAP_TO_LANDMARKS_M / 1000.0,
-                area.radius_m
-            )));
+        if let Some(area) = area {
+            check_search_area(option, area, &geodetic, landmarks_path)?;
         }
     }
-    // Per observation: its ray and its landmark (`None`: no landmark id).
-    let mut resolved: Vec<Option<(Ray, Geodetic, f64)>> = Vec::with_capacity(observations.len());
-    let mut rays: Vec<Ray> = Vec::with_capacity(observations.len());
-    for o in observations {
-        let ray = match (&o.measurement, rig) {
-            (Measurement::Bearing(b), _) => {
-                Ray::try_new(Vector3::zeros(), *b).ok_or_else(|| {
-                    InputError::field(observations_path, o.line, "bx", "zero bearing")
-                })?
-            }
-            (Measurement::Pixel { .. }, None) => {
-                return Err(InputError::field(
-                    observations_path,
-                    o.line,
-                    "camera",
-                    "pixel observations need --calibration (the rig's camera calibration)",
-                )
-                .into());
-            }
-            (Measurement::Pixel { camera, u, v }, Some(rig)) => {
-                let index: usize = camera.parse().map_err(|_| {
-                    InputError::field(
-                        observations_path,
-                        o.line,
-                        "camera",
-                        format!("`{camera}` is not a camera index of the calibration"),
-                    )
-                })?;
-                rig.ray(index, &Pixel::new(*u, *v)).map_err(|e| {
-                    InputError::field(observations_path, o.line, "camera", e.to_string())
-                })?
-            }
-        };
-        rays.push(ray);
-        let Some(id) = &o.landmark else {
-            resolved.push(None);
-            continue;
-        };
-        let Some((g, sigma_m)) = geodetic.get(id.as_str()) else {
-            return Err(InputError::field(
-                observations_path,
-                o.line,
-                "landmark",
-                format!(
-                    "unknown landmark id `{id}` (not in {})",
-                    landmarks_path.display()
-                ),
-            )
-            .into());
-        };
-        resolved.push(Some((ray, *g, *sigma_m)));
-    }
+    let (resolved, rays) = resolve_observations(input, &geodetic)?;
     let search_around = prior.or(region);
     let origin = match search_around {
         Some(p) => Some(p.position),
@@ -359,6 +282,125 @@ pub fn locate(
         reports.push(report(number, &rows, &fix, local));
     }
     Ok(reports)
+}
+
+/// The geodetic position and σ of every landmark, by id.
+///
+/// # Errors
+/// [`CliError::Input`] naming the file, line and column of a position the geodetic
+/// conversion rejects.
+fn landmark_positions<'a>(
+    landmarks: &'a [Landmark],
+    landmarks_path: &Path,
+) -> Result<HashMap<&'a str, (Geodetic, f64)>, CliError> {
+    let mut geodetic: HashMap<&str, (Geodetic, f64)> = HashMap::new();
+    for l in landmarks {
+        let g = Geodetic::try_new(l.lat_deg, l.lon_deg, l.alt_m).map_err(|e| {
+            InputError::field(
+                landmarks_path,
+                l.line,
+                vgps_io::geodetic_column(&e),
+                e.to_string(),
+            )
+        })?;
+        geodetic.insert(&l.id, (g, l.sigma_m.unwrap_or(0.0)));
+    }
+    Ok(geodetic)
+}
+
+/// Refuses a `--prior` or `--region` (named by `option`) farther than
+/// [`MAX_SEARCH_GAP_TO_LANDMARKS_M`] beyond its radius from every landmark.
+fn check_search_area(
+    option: &str,
+    area: &PriorArg,
+    geodetic: &HashMap<&str, (Geodetic, f64)>,
+    landmarks_path: &Path,
+) -> Result<(), CliError> {
+    let centre = area.position.to_ecef();
+    let nearest = geodetic
+        .values()
+        .map(|(g, _)| (g.to_ecef() - centre).norm())
+        .fold(f64::INFINITY, f64::min);
+    if nearest.is_finite() && nearest > area.radius_m + MAX_SEARCH_GAP_TO_LANDMARKS_M {
+        return Err(CliError::Calibration(format!(
+            "{option} LAT,LON {},{}: the nearest landmark of {} is {:.0} km away \
+             (more than {:.0} km beyond RADIUS_M {} m); are the coordinates in degrees?",
+            area.position.lat_deg,
+            area.position.lon_deg,
+            landmarks_path.display(),
+            nearest / 1000.0,
+            MAX_SEARCH_GAP_TO_LANDMARKS_M / 1000.0,
+            area.radius_m
+        )));
+    }
+    Ok(())
+}
+
+/// One observation resolved: its ray and, when it names one, its landmark's position and σ.
+type Resolved = Option<(Ray, Geodetic, f64)>;
+
+/// Per observation, in input order: its landmark (`None`: no landmark id) and its ray.
+///
+/// # Errors
+/// [`CliError::Input`] naming the file, line and field of a zero bearing, a pixel
+/// observation without a calibration or outside it, or an unknown landmark id.
+fn resolve_observations(
+    input: &LocateInput<'_>,
+    geodetic: &HashMap<&str, (Geodetic, f64)>,
+) -> Result<(Vec<Resolved>, Vec<Ray>), CliError> {
+    let observations_path = input.observations_path;
+    let mut resolved: Vec<Resolved> = Vec::with_capacity(input.observations.len());
+    let mut rays: Vec<Ray> = Vec::with_capacity(input.observations.len());
+    for o in input.observations {
+        let ray = match (&o.measurement, input.rig) {
+            (Measurement::Bearing(b), _) => {
+                Ray::try_new(Vector3::zeros(), *b).ok_or_else(|| {
+                    InputError::field(observations_path, o.line, "bx", "zero bearing")
+                })?
+            }
+            (Measurement::Pixel { .. }, None) => {
+                return Err(InputError::field(
+                    observations_path,
+                    o.line,
+                    "camera",
+                    "pixel observations need --calibration (the rig's camera calibration)",
+                )
+                .into());
+            }
+            (Measurement::Pixel { camera, u, v }, Some(rig)) => {
+                let index: usize = camera.parse().map_err(|_| {
+                    InputError::field(
+                        observations_path,
+                        o.line,
+                        "camera",
+                        format!("`{camera}` is not a camera index of the calibration"),
+                    )
+                })?;
+                rig.ray(index, &Pixel::new(*u, *v)).map_err(|e| {
+                    InputError::field(observations_path, o.line, "camera", e.to_string())
+                })?
+            }
+        };
+        rays.push(ray);
+        let Some(id) = &o.landmark else {
+            resolved.push(None);
+            continue;
+        };
+        let Some((g, sigma_m)) = geodetic.get(id.as_str()) else {
+            return Err(InputError::field(
+                observations_path,
+                o.line,
+                "landmark",
+                format!(
+                    "unknown landmark id `{id}` (not in {})",
+                    input.landmarks_path.display()
+                ),
+            )
+            .into());
+        };
+        resolved.push(Some((ray, *g, *sigma_m)));
+    }
+    Ok((resolved, rays))
 }
 
 /// The ECEF centroid of some positions, as a geodetic position (`None` if there are none

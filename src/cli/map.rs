@@ -16,11 +16,14 @@
 //! [`vgps_core::mapping::gps_pose_at`] interpolates linearly between any two samples; across an
 //! outage that would invent poses. A frame is used only when the GPS track covers
 //! `[t − m, t + m]` (`m` = the largest offset that may be applied) with epochs at most
-//! [`MAX_GNSS_GAP_S`] apart.
+//! [`MAX_GNSS_GAP_S`] apart ([`vgps_core::mapping::track_covers`]).
+//!
+//! The track's smoothing and coverage, the χ² and frame-coverage checks of a landmark live
+//! in [`vgps_core::mapping`] and [`vgps_core::stats`]; this module only orchestrates them.
 
-use super::CliError;
+use super::args::{parse_non_negative, parse_positive};
 use super::replay::OutputFormat;
-use nalgebra::Vector3;
+use super::{CliError, MapSettings};
 use serde::Serialize;
 use std::collections::HashMap;
 use std::io::Write;
@@ -28,13 +31,19 @@ use std::path::PathBuf;
 use std::time::Instant;
 use vgps_camera::calibration::{Pixel, Rig};
 use vgps_core::mapping::{
-    CameraFrame, GpsSample, MAX_GPS_OFFSET_S, MIN_LANDMARK_RAYS, MapRay, MappedLandmark,
-    OffsetSearch, RigObservation, SurveyOptions, calibrate_gps_offset, gps_pose_at,
-    refine_landmark, survey, write_landmarks_csv,
+    CameraFrame, GpsSample, MAX_GPS_OFFSET_S, MIN_LANDMARK_RAYS, MappedLandmark, OffsetSearch,
+    RigObservation, Survey, SurveyOptions, calibrate_gps_offset, frame_coverage, landmark_chi2,
+    median_speed, smooth_track, survey, track_covers, write_landmarks_csv,
 };
+use vgps_core::stats::median;
 use vgps_geometry::geo::LocalFrame;
 use vgps_geometry::geometry::Ray;
-use vgps_replay::drive::{Drive, GnssRecord, Strictness};
+use vgps_replay::drive::{Drive, GnssRecord};
+
+// Kept at their former paths: the track's constants and the statistics now live in
+// `vgps_core::mapping` and `vgps_core::stats`.
+pub use vgps_core::mapping::{MAX_GNSS_GAP_S, MIN_SMOOTH_FIXES};
+pub use vgps_core::stats::{chi2_quantile, pearson};
 
 /// Default horizontal σ of a GNSS fix per axis (metres). The white part of a consumer
 /// receiver's error (the simulator's CEP 2 m receiver: 22 % of 1.7² m²  ⇒ ≈ 0.8 m); the slow
@@ -44,9 +53,6 @@ pub const DEFAULT_GNSS_SIGMA_M: f64 = 0.8;
 pub const VERTICAL_SIGMA_FACTOR: f64 = 1.5;
 /// Default σ of the GNSS heading (degrees).
 pub const DEFAULT_HEADING_SIGMA_DEG: f64 = 0.5;
-/// Largest gap between two GNSS epochs with a fix and a heading over which the pose is
-/// interpolated (seconds); a longer gap is an outage.
-pub const MAX_GNSS_GAP_S: f64 = 1.0;
 /// Standard-normal quantile of the ray-consistency test (99.9 %): a landmark whose rays'
 /// χ² exceeds the χ²(dof) quantile at this level is not written. Two to five random
 /// transient lights (headlights, windows) pass the mapper's per-ray gates now and then; the
@@ -64,8 +70,6 @@ pub const DEFAULT_MIN_OBS: usize = vgps_core::mapping::MIN_SURROGATE_RAYS;
 /// quadratic fits to within the vehicle's jerk (≈ 0.1 m at 1.5 m/s³) while dividing the white
 /// noise's σ by ≈ 2.
 pub const DEFAULT_SMOOTH_S: f64 = 1.0;
-/// Fewest fixes in a smoothing window for the quadratic fit (else the fix is kept raw).
-pub const MIN_SMOOTH_FIXES: usize = 5;
 /// File name of the inventory in the drive directory when `--out` is not given.
 pub const DEFAULT_OUTPUT_NAME: &str = "mapped_landmarks.csv";
 
@@ -87,13 +91,6 @@ fn parse_offset(text: &str) -> Result<GpsOffset, String> {
         _ => Err(format!(
             "`{text}` is neither `auto` nor a number of seconds in [-10, 10]"
         )),
-    }
-}
-
-fn parse_positive(text: &str) -> Result<f64, String> {
-    match text.parse::<f64>() {
-        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
-        _ => Err(format!("`{text}` is not a positive finite number")),
     }
 }
 
@@ -150,29 +147,10 @@ pub struct MapArgs {
     pub gnss: super::gnss_input::GnssInputArgs,
 }
 
-fn parse_non_negative(text: &str) -> Result<f64, String> {
-    match text.parse::<f64>() {
-        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
-        _ => Err(format!("`{text}` is not a non-negative finite number")),
-    }
-}
-
 fn parse_fraction(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {
         Ok(v) if (0.0..=1.0).contains(&v) => Ok(v),
         _ => Err(format!("`{text}` is not a number in [0, 1]")),
-    }
-}
-
-/// Fraction of the frames between a landmark's first and last observation in which it is
-/// observed (`sources` = `(frame, observation)` pairs; 0 when empty).
-fn frame_coverage(sources: &[(usize, usize)]) -> f64 {
-    let mut frames: Vec<usize> = sources.iter().map(|s| s.0).collect();
-    frames.sort_unstable();
-    frames.dedup();
-    match (frames.first(), frames.last()) {
-        (Some(a), Some(b)) => frames.len() as f64 / (b - a + 1) as f64,
-        _ => 0.0,
     }
 }
 
@@ -254,44 +232,93 @@ pub struct MapSummary {
 /// # Errors
 /// [`CliError::Calibration`] when the drive cannot be opened or has no usable GNSS track
 /// (exit 2); [`CliError::Output`] when the file or the summary cannot be written.
-pub fn run(args: &MapArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<(), CliError> {
+pub fn run(
+    settings: &MapSettings,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Result<(), CliError> {
     let start = Instant::now();
-    let strictness = if args.strict {
-        Strictness::Strict
-    } else {
-        Strictness::Lenient
-    };
-    let mut drive =
-        Drive::open(&args.drive, strictness).map_err(|e| CliError::Calibration(e.to_string()))?;
-    args.gnss.apply(&mut drive, err)?;
+    let mut drive = Drive::open(&settings.drive, settings.strictness)
+        .map_err(|e| CliError::Calibration(e.to_string()))?;
+    settings.gnss.apply(&mut drive, err)?;
     for w in drive.warnings() {
         let _ = writeln!(err, "vgps: warning: {w}");
     }
-    let unusable = |what: &str| CliError::Calibration(format!("{}: {what}", args.drive.display()));
+    let unusable =
+        |what: &str| CliError::Calibration(format!("{}: {what}", settings.drive.display()));
     let Some(origin) = drive.gnss().iter().find_map(|r| r.fix.map(|f| f.position)) else {
         return Err(unusable("no GNSS fix: survey mode needs GPS with heading"));
     };
     let frame = LocalFrame::new(origin);
     // The offset is calibrated on the raw fixes (the smoothed track biased it: 0.33 s for a
     // true 0.1 s on the precise short drive), the inventory mapped on the smoothed one.
-    let raw_gps = gps_samples(drive.gnss(), &frame, args);
-    let gps = smooth_track(&raw_gps, args.smooth_s);
+    let raw_gps = gps_samples(drive.gnss(), &frame, settings);
+    let gps = smooth_track(&raw_gps, settings.smooth_s);
     if gps.len() < 2 {
         return Err(unusable(
             "fewer than two GNSS epochs with both a fix and a heading (GGA + HDT)",
         ));
     }
-    let margin = match args.gps_offset {
+    let margin = match settings.gps_offset {
         GpsOffset::Auto => MAX_GPS_OFFSET_S,
         GpsOffset::Seconds(s) => s.abs(),
     };
+    let rays = collect_rays(&drive, &gps, margin, settings.pixel_sigma_px);
+    let mut options = SurveyOptions::default();
+    options.mapper.min_landmark_rays = settings.min_obs;
+    let mapping_error = |e: vgps_core::mapping::MappingError| {
+        CliError::Calibration(format!("{}: {e}", settings.drive.display()))
+    };
+    let gps_offset = offset_summary(settings.gps_offset, &raw_gps, &gps, &rays.frames, &options)
+        .map_err(mapping_error)?;
+    options.gps_time_offset_s = gps_offset.offset_s;
+    let inventory = survey(&gps, &rays.frames, &options).map_err(mapping_error)?;
+    let (landmarks, inconsistent) =
+        consistent_landmarks(&inventory, &gps, &rays.frames, &options, settings);
+    let path = &settings.out;
+    write_landmarks_csv(path, &landmarks, &frame, &rays.classes)
+        .map_err(|e| CliError::Output(std::io::Error::other(e.to_string())))?;
+    let summary = MapSummary {
+        output: path.display().to_string(),
+        origin: [origin.lat_deg, origin.lon_deg, origin.alt_m],
+        frames: drive.frames().len(),
+        frames_used: rays.frames.len(),
+        gps_samples: gps.len(),
+        rays: rays.rays,
+        detections_without_ray: rays.without_ray,
+        landmarks: landmarks.len(),
+        inconsistent,
+        landmarks_by_class: by_class(&landmarks, &rays.classes),
+        n_obs: nobs_summary(&landmarks),
+        median_sigma_m: median(landmarks.iter().map(MappedLandmark::sigma_m).collect()),
+        information_nobs_correlation: information_correlation(&landmarks),
+        gps_offset,
+        time_s: start.elapsed().as_secs_f64(),
+    };
+    write_summary(&summary, settings.format, out)
+}
+
+/// The camera frames of a drive as rays in the rig frame, with the class names met.
+struct DriveRays {
+    /// The frames inside the GNSS track, in drive order.
+    frames: Vec<CameraFrame>,
+    /// Class names, indexed by the observations' class.
+    classes: Vec<String>,
+    /// Rays given to the mapper.
+    rays: usize,
+    /// Detections whose pixel has no ray.
+    without_ray: usize,
+}
+
+/// The rays of every frame whose time ± `margin` the track covers ([`track_covers`]).
+fn collect_rays(drive: &Drive, gps: &[GpsSample], margin: f64, pixel_sigma_px: f64) -> DriveRays {
     let mut classes: Vec<String> = Vec::new();
     let mut class_of: HashMap<String, u32> = HashMap::new();
     let mut frames = Vec::new();
     let mut without_ray = 0;
     let mut rays = 0;
     for f in drive.frames() {
-        if !covered(&gps, f.time_s, margin) {
+        if !track_covers(gps, f.time_s, margin) {
             continue;
         }
         let mut observations = Vec::new();
@@ -302,7 +329,7 @@ pub fn run(args: &MapArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<(
                     u32::try_from(classes.len() - 1).unwrap_or(u32::MAX)
                 })
             });
-            match pixel_ray(drive.rig(), d.camera, d.u, d.v, args.pixel_sigma_px) {
+            match pixel_ray(drive.rig(), d.camera, d.u, d.v, pixel_sigma_px) {
                 Some((ray_in_rig, sigma_rad)) => observations.push(RigObservation {
                     ray_in_rig,
                     sigma_rad,
@@ -317,13 +344,25 @@ pub fn run(args: &MapArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<(
             observations,
         });
     }
-    let mut options = SurveyOptions::default();
-    options.mapper.min_landmark_rays = args.min_obs;
-    let speed = median_speed(&gps);
-    let mapping_error = |e: vgps_core::mapping::MappingError| {
-        CliError::Calibration(format!("{}: {e}", args.drive.display()))
-    };
-    let gps_offset = match args.gps_offset {
+    DriveRays {
+        frames,
+        classes,
+        rays,
+        without_ray,
+    }
+}
+
+/// The GPS offset to apply: the given one, or the estimate of [`calibrate_gps_offset`] on
+/// the raw track (`gps` is the smoothed track, for the median speed).
+fn offset_summary(
+    offset: GpsOffset,
+    raw_gps: &[GpsSample],
+    gps: &[GpsSample],
+    frames: &[CameraFrame],
+    options: &SurveyOptions,
+) -> Result<OffsetSummary, vgps_core::mapping::MappingError> {
+    let speed = median_speed(gps);
+    Ok(match offset {
         GpsOffset::Seconds(s) => OffsetSummary {
             mode: "given",
             offset_s: s,
@@ -335,8 +374,7 @@ pub fn run(args: &MapArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<(
             dof: None,
         },
         GpsOffset::Auto => {
-            let c = calibrate_gps_offset(&raw_gps, &frames, &options, &OffsetSearch::default())
-                .map_err(mapping_error)?;
+            let c = calibrate_gps_offset(raw_gps, frames, options, &OffsetSearch::default())?;
             OffsetSummary {
                 mode: "auto",
                 offset_s: c.offset_s,
@@ -348,94 +386,49 @@ pub fn run(args: &MapArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<(
                 dof: Some(c.dof),
             }
         }
-    };
-    options.gps_time_offset_s = gps_offset.offset_s;
-    let inventory = survey(&gps, &frames, &options).map_err(mapping_error)?;
-    // Consistency: the rays of a landmark must meet within their covariance (χ² test).
+    })
+}
+
+/// The inventory's landmarks with at least `--min-obs` rays that pass the frame-coverage
+/// test and whose rays meet within their covariance (χ² at [`CONSISTENCY_Z`]), and how
+/// many failed those two tests.
+fn consistent_landmarks(
+    inventory: &Survey,
+    gps: &[GpsSample],
+    frames: &[CameraFrame],
+    options: &SurveyOptions,
+    settings: &MapSettings,
+) -> (Vec<MappedLandmark>, usize) {
     let sources: HashMap<u64, &[(usize, usize)]> = inventory
         .sources
         .iter()
         .map(|(id, v)| (*id, v.as_slice()))
         .collect();
     let mut inconsistent = 0;
-    let landmarks: Vec<MappedLandmark> = inventory
+    let landmarks = inventory
         .landmarks
         .iter()
-        .filter(|l| l.n_obs >= args.min_obs)
+        .filter(|l| l.n_obs >= settings.min_obs)
         .filter(|l| {
             let src = sources.get(&l.id).copied().unwrap_or(&[]);
-            let ok = frame_coverage(src) >= args.min_coverage
-                && landmark_chi2(&gps, &frames, src, &options)
+            let ok = frame_coverage(src) >= settings.min_coverage
+                && landmark_chi2(gps, frames, src, options)
                     .is_some_and(|(chi2, dof)| chi2 <= chi2_quantile(dof, CONSISTENCY_Z));
             inconsistent += usize::from(!ok);
             ok
         })
         .cloned()
         .collect();
-    let path = args
-        .out
-        .clone()
-        .unwrap_or_else(|| args.drive.join(DEFAULT_OUTPUT_NAME));
-    write_landmarks_csv(&path, &landmarks, &frame, &classes)
-        .map_err(|e| CliError::Output(std::io::Error::other(e.to_string())))?;
-    let summary = MapSummary {
-        output: path.display().to_string(),
-        origin: [origin.lat_deg, origin.lon_deg, origin.alt_m],
-        frames: drive.frames().len(),
-        frames_used: frames.len(),
-        gps_samples: gps.len(),
-        rays,
-        detections_without_ray: without_ray,
-        landmarks: landmarks.len(),
-        inconsistent,
-        landmarks_by_class: by_class(&landmarks, &classes),
-        n_obs: nobs_summary(&landmarks),
-        median_sigma_m: median(landmarks.iter().map(MappedLandmark::sigma_m).collect()),
-        information_nobs_correlation: information_correlation(&landmarks),
-        gps_offset,
-        time_s: start.elapsed().as_secs_f64(),
-    };
-    write_summary(&summary, args.format, out)
+    (landmarks, inconsistent)
 }
 
-/// `(χ², dof)` of one landmark's rays at its refined estimate (residual perpendicular to
-/// each ray over its covariance, [`vgps_core::mapping::ray_residual_covariance`]).
-fn landmark_chi2(
-    gps: &[GpsSample],
-    frames: &[CameraFrame],
-    sources: &[(usize, usize)],
-    options: &SurveyOptions,
-) -> Option<(f64, usize)> {
-    let mut rays = Vec::with_capacity(sources.len());
-    for &(fi, k) in sources {
-        let f = frames.get(fi)?;
-        let o = f.observations.get(k)?;
-        let (pose, cov) = gps_pose_at(
-            gps,
-            f.time_s + options.gps_time_offset_s,
-            options.sigma_level_rad,
-        )?;
-        rays.push(MapRay::from_rig(&pose, &cov, &o.ray_in_rig, o.sigma_rad));
-    }
-    let est = refine_landmark(&rays).ok()?;
-    let mut chi2 = 0.0;
-    for r in &rays {
-        chi2 += vgps_core::mapping::ray_chi2(r, &est.point)?;
-    }
-    let dof = (2 * rays.len()).checked_sub(3)?;
-    chi2.is_finite().then_some((chi2, dof))
-}
-
-/// The χ²(dof) quantile at the standard-normal quantile `z` (Wilson–Hilferty:
-/// `dof·(1 − 2/(9 dof) + z √(2/(9 dof)))³`, within 2 % (above) for dof ≥ 3).
-pub fn chi2_quantile(dof: usize, z: f64) -> f64 {
-    let k = dof.max(1) as f64;
-    let a = 2.0 / (9.0 * k);
-    k * (1.0 - a + z * a.sqrt()).powi(3)
-}
-
-/// GNSS epochs with a fix and a heading, in the ENU `frame`.
-fn gps_samples(records: &[GnssRecord], frame: &LocalFrame, args: &MapArgs) -> Vec<GpsSample> {
+/// GNSS epochs with a fix and a heading, in the ENU `frame`, with the σ of the settings
+/// (vertical = [`VERTICAL_SIGMA_FACTOR`] × horizontal).
+fn gps_samples(
+    records: &[GnssRecord],
+    frame: &LocalFrame,
+    settings: &MapSettings,
+) -> Vec<GpsSample> {
     let mut gps: Vec<GpsSample> = Vec::new();
     for r in records {
         let (Some(fix), Some(heading_deg)) = (r.fix, r.heading_deg) else {
@@ -450,112 +443,17 @@ fn gps_samples(records: &[GnssRecord], frame: &LocalFrame, args: &MapArgs) -> Ve
             time_s: r.time_s,
             position_enu: frame.to_enu(&fix.position),
             heading_rad: heading_deg.to_radians(),
-            sigma_horizontal_m: args.gnss_sigma_m,
-            sigma_vertical_m: VERTICAL_SIGMA_FACTOR * args.gnss_sigma_m,
-            sigma_heading_rad: args.heading_sigma_deg.to_radians(),
+            sigma_horizontal_m: settings.gnss_sigma_m,
+            sigma_vertical_m: VERTICAL_SIGMA_FACTOR * settings.gnss_sigma_m,
+            sigma_heading_rad: settings.heading_sigma_rad,
         });
     }
     gps
 }
 
-/// The track with every position replaced by a local quadratic fit (least squares in
-/// time, per axis) over the fixes within `half_window_s` in the same outage-free segment,
-/// and its σ by `σ √h` (`h` = the fit's leverage at the centre). The white part of the
-/// GNSS noise shrinks; the errors of nearby smoothed fixes become correlated, which the
-/// mapper (independent pose errors) does not model.
-fn smooth_track(gps: &[GpsSample], half_window_s: f64) -> Vec<GpsSample> {
-    if half_window_s <= 0.0 {
-        return gps.to_vec();
-    }
-    let mut out = gps.to_vec();
-    for (i, o) in out.iter_mut().enumerate() {
-        let t0 = gps[i].time_s;
-        let mut lo = i;
-        while lo > 0
-            && t0 - gps[lo - 1].time_s <= half_window_s
-            && gps[lo].time_s - gps[lo - 1].time_s <= MAX_GNSS_GAP_S
-        {
-            lo -= 1;
-        }
-        let mut hi = i;
-        while hi + 1 < gps.len()
-            && gps[hi + 1].time_s - t0 <= half_window_s
-            && gps[hi + 1].time_s - gps[hi].time_s <= MAX_GNSS_GAP_S
-        {
-            hi += 1;
-        }
-        if hi - lo + 1 < MIN_SMOOTH_FIXES {
-            continue;
-        }
-        let mut ata = nalgebra::Matrix3::<f64>::zeros();
-        let mut atb = nalgebra::Matrix3::<f64>::zeros();
-        for g in &gps[lo..=hi] {
-            let dt = g.time_s - t0;
-            let row = Vector3::new(1.0, dt, dt * dt);
-            ata += row * row.transpose();
-            atb += row * g.position_enu.transpose();
-        }
-        let Some(inv) = ata.try_inverse() else {
-            continue;
-        };
-        let coef = inv * atb;
-        let position = coef.row(0).transpose();
-        let leverage = inv[(0, 0)];
-        if !(vgps_geometry::geometry::is_finite(&position) && leverage > 0.0 && leverage <= 1.0) {
-            continue;
-        }
-        o.position_enu = position;
-        o.sigma_horizontal_m *= leverage.sqrt();
-        o.sigma_vertical_m *= leverage.sqrt();
-    }
-    out
-}
-
-/// True when the track covers `[t − margin, t + margin]` with epochs at most
-/// [`MAX_GNSS_GAP_S`] apart.
-fn covered(gps: &[GpsSample], t: f64, margin: f64) -> bool {
-    let (lo, hi) = (t - margin, t + margin);
-    // The last epoch at or before `lo`, then every epoch up to the first at or after `hi`.
-    let first = gps.partition_point(|g| g.time_s <= lo);
-    let Some(start) = first.checked_sub(1) else {
-        return false;
-    };
-    let mut i = start;
-    while gps[i].time_s < hi {
-        let Some(next) = gps.get(i + 1) else {
-            return false;
-        };
-        if next.time_s - gps[i].time_s > MAX_GNSS_GAP_S {
-            return false;
-        }
-        i += 1;
-    }
-    true
-}
-
 /// The rig-frame ray of a pixel and its angular σ, as the localizer computes it.
 fn pixel_ray(rig: &Rig, camera: usize, u: f64, v: f64, pixel_sigma_px: f64) -> Option<(Ray, f64)> {
     rig.try_ray_with_sigma(camera, &Pixel::new(u, v), pixel_sigma_px)
-}
-
-/// Median horizontal speed between consecutive epochs at most [`MAX_GNSS_GAP_S`] apart
-/// (m/s; 0 when there are none).
-fn median_speed(gps: &[GpsSample]) -> f64 {
-    let speeds = gps
-        .windows(2)
-        .filter(|w| w[1].time_s - w[0].time_s <= MAX_GNSS_GAP_S)
-        .map(|w| (w[1].position_enu - w[0].position_enu).xy().norm() / (w[1].time_s - w[0].time_s))
-        .collect();
-    median(speeds).unwrap_or(0.0)
-}
-
-fn median(mut v: Vec<f64>) -> Option<f64> {
-    v.retain(|x| x.is_finite());
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(f64::total_cmp);
-    Some(v[v.len() / 2])
 }
 
 fn nobs_summary(landmarks: &[MappedLandmark]) -> Option<NobsSummary> {
@@ -607,25 +505,6 @@ fn information_correlation(landmarks: &[MappedLandmark]) -> Option<f64> {
         })
         .collect();
     pearson(&pairs)
-}
-
-/// Pearson correlation of the pairs (`None` for fewer than 3 or a constant coordinate).
-pub fn pearson(pairs: &[(f64, f64)]) -> Option<f64> {
-    if pairs.len() < 3 {
-        return None;
-    }
-    let n = pairs.len() as f64;
-    let (mx, my) = pairs
-        .iter()
-        .fold((0.0, 0.0), |(a, b), (x, y)| (a + x / n, b + y / n));
-    let (mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0);
-    for (x, y) in pairs {
-        sxy += (x - mx) * (y - my);
-        sxx += (x - mx) * (x - mx);
-        syy += (y - my) * (y - my);
-    }
-    let r = sxy / (sxx * syy).sqrt();
-    r.is_finite().then_some(r)
 }
 
 fn write_summary(
@@ -693,31 +572,6 @@ fn write_summary(
 mod tests {
     use super::*;
 
-    fn sample(t: f64) -> GpsSample {
-        GpsSample {
-            time_s: t,
-            position_enu: Vector3::new(10.0 * t, 0.0, 0.0),
-            heading_rad: 0.0,
-            sigma_horizontal_m: 1.0,
-            sigma_vertical_m: 1.0,
-            sigma_heading_rad: 0.01,
-        }
-    }
-
-    #[test]
-    fn coverage_excludes_outages_and_track_ends() {
-        let mut gps: Vec<GpsSample> = (0..10).map(|k| sample(0.2 * k as f64)).collect();
-        gps.extend((0..10).map(|k| sample(5.0 + 0.2 * k as f64)));
-        assert!(covered(&gps, 1.0, 0.5));
-        assert!(!covered(&gps, 0.3, 0.5), "before the start with the margin");
-        assert!(covered(&gps, 0.3, 0.0));
-        assert!(!covered(&gps, 1.6, 0.5), "margin reaches into the outage");
-        assert!(!covered(&gps, 3.0, 0.0), "inside the outage");
-        assert!(covered(&gps, 5.9, 0.5));
-        assert!(!covered(&gps, 6.7, 0.5), "after the end");
-        assert!((median_speed(&gps) - 10.0).abs() < 1e-9);
-    }
-
     #[test]
     fn offsets_and_min_obs_parse() {
         assert_eq!(parse_offset("auto"), Ok(GpsOffset::Auto));
@@ -725,21 +579,5 @@ mod tests {
         assert!(parse_offset("NaN").is_err() && parse_offset("11").is_err());
         assert_eq!(parse_min_obs("5"), Ok(5));
         assert!(parse_min_obs("2").is_err());
-    }
-
-    #[test]
-    fn chi2_quantile_matches_tables() {
-        // χ² 99.9 % quantiles: dof 3 → 16.27, 10 → 29.59, 100 → 149.45.
-        for (dof, q) in [(3, 16.266), (10, 29.588), (100, 149.449)] {
-            let r = chi2_quantile(dof, CONSISTENCY_Z) / q;
-            assert!((r - 1.0).abs() < 0.02, "dof {dof}: {r}");
-        }
-    }
-
-    #[test]
-    fn pearson_of_a_line_and_of_noise() {
-        let line: Vec<(f64, f64)> = (0..10).map(|k| (k as f64, 3.0 * k as f64 + 1.0)).collect();
-        assert!((pearson(&line).unwrap_or(0.0) - 1.0).abs() < 1e-12);
-        assert_eq!(pearson(&[(1.0, 1.0), (1.0, 2.0), (1.0, 3.0)]), None);
     }
 }

@@ -1,6 +1,7 @@
 //! The command implementations behind the `vgps` binary.
 //!
-//! The command line is parsed once ([`args::Cli`], clap) and validated into [`Settings`];
+//! The command line is parsed once ([`args::Cli`], clap) and validated into [`Settings`]
+//! ([`settings`]: one settings value per subcommand);
 //! each subcommand then runs on those settings, writing its results to `out` and its
 //! diagnostics to `err`. `docs/cli.md` documents the subcommands, the file formats, the
 //! outputs and the exit codes:
@@ -18,10 +19,15 @@ pub mod image_size;
 pub mod locate;
 pub mod map;
 pub mod replay;
+pub mod settings;
 pub mod simulate;
 pub mod triangulate;
 
-pub use args::{Cli, LocateSettings, PriorArg, Settings, TriangulateSettings};
+pub use args::{Cli, PriorArg};
+pub use settings::{
+    DemoSettings, DetectSettings, LocateSettings, MapSettings, ReplaySettings, Settings,
+    SimulateSettings, TriangulateSettings,
+};
 
 use clap::Parser;
 use std::ffi::OsString;
@@ -92,11 +98,11 @@ where
     let result = Settings::try_from(cli).and_then(|settings| match settings {
         Settings::Locate(s) => locate::run(&s, out, err),
         Settings::Triangulate(s) => triangulate::run(&s, out, err),
-        Settings::Demo(a) => demo::run(&a, out, err),
-        Settings::Simulate(a) => simulate::run(&a, out),
-        Settings::Replay(a) => replay::run(&a, out, err),
-        Settings::Detect(a) => detect::run(&a, out, err),
-        Settings::Map(a) => map::run(&a, out, err),
+        Settings::Demo(s) => demo::run(&s, out, err),
+        Settings::Simulate(s) => simulate::run(&s, out),
+        Settings::Replay(s) => replay::run(&s, out, err),
+        Settings::Detect(s) => detect::run(&s, out, err),
+        Settings::Map(s) => map::run(&s, out, err),
         // Handled above: `vgps calib` reports on its own.
         Settings::Calib(_) => Ok(()),
     });

@@ -9,7 +9,7 @@
 //! whose detections are then localized in order. From `detections.csv` the localizer alone
 //! runs, on one thread.
 
-use super::CliError;
+use super::{CliError, ReplaySettings};
 use nalgebra::Matrix2;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -19,7 +19,7 @@ use vgps_core::localizer::{
     Frame, GnssPosition, LandmarkMap, Localizer, LocalizerFix, LocalizerOptions, LocalizerStatus,
 };
 use vgps_replay::drive::gnss::gnss_at;
-use vgps_replay::drive::{Drive, FrameStatus, Strictness};
+use vgps_replay::drive::{Drive, FrameStatus};
 use vgps_replay::report::{DriveInfo, FrameRecord, Report, Truth, VisualFix, summary_table};
 
 /// The status of a frame none of whose images could be used.
@@ -109,69 +109,45 @@ impl<'a> FrameDetections<'a> {
 /// [`CliError::Input`]/[`CliError::Calibration`] when the drive cannot be used at all;
 /// [`CliError::Output`] when an output cannot be written. Frames without a fix are reported
 /// in the outputs, not errors.
-pub fn run(args: &ReplayArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<(), CliError> {
-    if !(args.pixel_sigma_px.is_finite() && args.pixel_sigma_px > 0.0) {
-        return Err(CliError::Calibration(format!(
-            "--pixel-sigma-px {} is not a positive number",
-            args.pixel_sigma_px
-        )));
-    }
-    let strictness = if args.strict {
-        Strictness::Strict
-    } else {
-        Strictness::Lenient
-    };
-    let mut drive =
-        Drive::open(&args.drive, strictness).map_err(|e| CliError::Calibration(e.to_string()))?;
-    if (args.from_images || drive.manifest().detections.is_none() || args.image_size.is_some())
-        && let Some(note) = super::image_size::resolve(&mut drive, args.image_size)?
+pub fn run(
+    settings: &ReplaySettings,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Result<(), CliError> {
+    let mut drive = Drive::open(&settings.drive, settings.strictness)
+        .map_err(|e| CliError::Calibration(e.to_string()))?;
+    if (settings.from_images
+        || drive.manifest().detections.is_none()
+        || settings.image_size.is_some())
+        && let Some(note) = super::image_size::resolve(&mut drive, settings.image_size)?
     {
         let _ = writeln!(err, "vgps: {note}");
     }
-    args.gnss.apply(&mut drive, err)?;
-    for w in drive.warnings() {
-        let _ = writeln!(err, "vgps: warning: {w}");
-    }
-    if let Some(stats) = drive.nmea_stats()
-        && stats.skipped() > 0
-    {
-        let _ = writeln!(
-            err,
-            "vgps: warning: {}: {} NMEA line(s) skipped (bad checksum, garbage or truncated)",
-            args.drive.display(),
-            stats.skipped()
-        );
-    }
+    settings.gnss.apply(&mut drive, err)?;
+    warn_about_drive(&drive, &settings.drive, err);
     let map = Arc::new(
         LandmarkMap::from_landmarks(drive.landmarks(), None)
-            .map_err(|e| CliError::Calibration(format!("{}: {e}", args.drive.display())))?,
+            .map_err(|e| CliError::Calibration(format!("{}: {e}", settings.drive.display())))?,
     );
     let rig = Arc::new(drive.rig().clone());
     let options = LocalizerOptions {
-        pixel_sigma_px: args.pixel_sigma_px,
-        surrogates: !args.no_surrogates,
+        pixel_sigma_px: settings.pixel_sigma_px,
+        surrogates: settings.surrogates,
         ..LocalizerOptions::default()
     };
     let mut localizer = Localizer::new(Arc::clone(&rig), Arc::clone(&map), options)
         .map_err(|e| CliError::Internal(e.to_string()))?;
     // An unusable output directory fails now, not after the whole drive is localized.
-    let out_dir = args
-        .out
-        .clone()
-        .unwrap_or_else(|| args.drive.join("replay"));
-    std::fs::create_dir_all(&out_dir).map_err(|e| {
+    let out_dir = &settings.out_dir;
+    std::fs::create_dir_all(out_dir).map_err(|e| {
         CliError::Output(std::io::Error::new(
             e.kind(),
             format!("{}: {e}", out_dir.display()),
         ))
     })?;
-    let from_images = args.from_images || drive.manifest().detections.is_none();
-    let threads = args
-        .threads
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
-        .max(1);
+    let from_images = settings.from_images || drive.manifest().detections.is_none();
     let frames = drive.frames();
-    let progress = (!args.quiet && std::io::stderr().is_terminal()).then(|| {
+    let progress = (!settings.quiet && std::io::stderr().is_terminal()).then(|| {
         let bar = indicatif::ProgressBar::new(frames.len() as u64);
         bar.set_style(
             indicatif::ProgressStyle::with_template(
@@ -184,70 +160,18 @@ pub fn run(args: &ReplayArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resul
     let mut records = Vec::with_capacity(frames.len());
     for batch in frames.chunks(BATCH_FRAMES) {
         let detections: Vec<FrameDetections> = if from_images {
-            detect_batch(&drive, batch, threads)
+            detect_batch(&drive, batch, settings.threads)
         } else {
-            batch
-                .iter()
-                .map(|f| match drive.status(f.frame) {
-                    FrameStatus::Ok => FrameDetections::from_file(drive.detections(f.frame)),
-                    FrameStatus::BadRows(messages) => {
-                        // The frame's readable rows are still used; the bad rows are reported.
-                        let _ = writeln!(err, "vgps: warning: {}", messages.join("; "));
-                        FrameDetections::from_file(drive.detections(f.frame))
-                    }
-                })
-                .collect()
+            file_detections(&drive, batch, err)
         };
         for (f, d) in batch.iter().zip(detections) {
-            let gnss = gnss_at(drive.gnss(), f.time_s);
-            let truth = drive.truth_of(f.frame).map(|t| Truth {
-                geodetic: t.position,
-                heading_deg: vgps_sim::simulate::heading_deg(&t.enu_from_rig),
-            });
-            let (status, visual, unusable_images) = match d {
-                FrameDetections::Bad {
-                    message,
-                    unusable_images,
-                } => {
-                    let _ = writeln!(err, "vgps: frame {}: {message}", f.frame);
-                    (BAD_IMAGE_STATUS.to_string(), None, unusable_images)
-                }
-                FrameDetections::Ok {
-                    detections: dets,
-                    unusable_images,
-                    problems,
-                } => {
-                    if let Some(p) = problems {
-                        let _ = writeln!(
-                            err,
-                            "vgps: warning: frame {}: {} image(s) unusable, localized with the others: {p}",
-                            f.frame,
-                            unusable_images.unwrap_or(0)
-                        );
-                    }
-                    let prior = if args.no_gnss_prior {
-                        None
-                    } else {
-                        gnss.map(|position| GnssPosition { position })
-                    };
-                    let fix =
-                        localizer.process(&Frame::from_detections(f.time_s, &dets, &map, prior));
-                    (
-                        fix.status.as_str().to_string(),
-                        visual_of(&fix),
-                        unusable_images,
-                    )
-                }
+            let mut step = FrameStep {
+                drive: &drive,
+                map: &map,
+                localizer: &mut localizer,
+                gnss_prior: settings.gnss_prior,
             };
-            records.push(FrameRecord {
-                frame: f.frame,
-                time_s: f.time_s,
-                status,
-                visual,
-                gnss,
-                unusable_images,
-                truth,
-            });
+            records.push(step.record(f, d, err));
         }
         if let Some(bar) = &progress {
             bar.inc(batch.len() as u64);
@@ -257,23 +181,129 @@ pub fn run(args: &ReplayArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resul
         bar.finish_and_clear();
     }
     let info = DriveInfo {
-        name: drive_name(&args.drive),
+        name: drive_name(&settings.drive),
         origin: map.frame().origin(),
     };
-    let (report, _files) = vgps_replay::report::write_outputs(&out_dir, &info, &records)
+    let (report, _files) = vgps_replay::report::write_outputs(out_dir, &info, &records)
         .map_err(|e| CliError::Output(std::io::Error::other(e.to_string())))?;
-    write_summary(&report, args, &out_dir, out)
+    write_summary(&report, settings, out_dir, out)
+}
+
+/// Writes the drive's warnings (manifest, skipped NMEA lines) to `err`.
+fn warn_about_drive(drive: &Drive, dir: &Path, err: &mut dyn Write) {
+    for w in drive.warnings() {
+        let _ = writeln!(err, "vgps: warning: {w}");
+    }
+    if let Some(stats) = drive.nmea_stats()
+        && stats.skipped() > 0
+    {
+        let _ = writeln!(
+            err,
+            "vgps: warning: {}: {} NMEA line(s) skipped (bad checksum, garbage or truncated)",
+            dir.display(),
+            stats.skipped()
+        );
+    }
+}
+
+/// The detections of a batch of frames from the drive's detections file (bad rows are
+/// reported on `err`; the frame's readable rows are still used).
+fn file_detections<'a>(
+    drive: &'a Drive,
+    batch: &[vgps_replay::drive::Frame],
+    err: &mut dyn Write,
+) -> Vec<FrameDetections<'a>> {
+    batch
+        .iter()
+        .map(|f| match drive.status(f.frame) {
+            FrameStatus::Ok => FrameDetections::from_file(drive.detections(f.frame)),
+            FrameStatus::BadRows(messages) => {
+                let _ = writeln!(err, "vgps: warning: {}", messages.join("; "));
+                FrameDetections::from_file(drive.detections(f.frame))
+            }
+        })
+        .collect()
+}
+
+/// What localizes the frames of a drive, in time order.
+struct FrameStep<'d, 'l> {
+    drive: &'d Drive,
+    map: &'d LandmarkMap,
+    localizer: &'l mut Localizer,
+    gnss_prior: bool,
+}
+
+impl FrameStep<'_, '_> {
+    /// Localizes one frame from its detections and returns its report record (a frame
+    /// without usable images is reported as [`BAD_IMAGE_STATUS`] on `err` and in the record).
+    fn record(
+        &mut self,
+        f: &vgps_replay::drive::Frame,
+        d: FrameDetections<'_>,
+        err: &mut dyn Write,
+    ) -> FrameRecord {
+        let gnss = gnss_at(self.drive.gnss(), f.time_s);
+        let truth = self.drive.truth_of(f.frame).map(|t| Truth {
+            geodetic: t.position,
+            heading_deg: vgps_sim::simulate::heading_deg(&t.enu_from_rig),
+        });
+        let (status, visual, unusable_images) = match d {
+            FrameDetections::Bad {
+                message,
+                unusable_images,
+            } => {
+                let _ = writeln!(err, "vgps: frame {}: {message}", f.frame);
+                (BAD_IMAGE_STATUS.to_string(), None, unusable_images)
+            }
+            FrameDetections::Ok {
+                detections: dets,
+                unusable_images,
+                problems,
+            } => {
+                if let Some(p) = problems {
+                    let _ = writeln!(
+                        err,
+                        "vgps: warning: frame {}: {} image(s) unusable, localized with the others: {p}",
+                        f.frame,
+                        unusable_images.unwrap_or(0)
+                    );
+                }
+                let prior = if self.gnss_prior {
+                    gnss.map(|position| GnssPosition { position })
+                } else {
+                    None
+                };
+                let fix = self
+                    .localizer
+                    .process(&Frame::from_detections(f.time_s, &dets, self.map, prior));
+                (
+                    fix.status.as_str().to_string(),
+                    visual_of(&fix),
+                    unusable_images,
+                )
+            }
+        };
+        FrameRecord {
+            frame: f.frame,
+            time_s: f.time_s,
+            status,
+            visual,
+            gnss,
+            unusable_images,
+            truth,
+        }
+    }
 }
 
 fn write_summary(
     report: &Report,
-    args: &ReplayArgs,
+    settings: &ReplaySettings,
     out_dir: &Path,
     out: &mut dyn Write,
 ) -> Result<(), CliError> {
-    match args.format {
+    match settings.format {
         OutputFormat::Json => write!(out, "{}", report.to_json())?,
-        OutputFormat::Text if !args.quiet => {
+        OutputFormat::Text if !settings.quiet => {
             write!(out, "{}", summary_table(report))?;
             writeln!(out, "report: {}", out_dir.join("report.html").display())?;
         }

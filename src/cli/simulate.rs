@@ -1,10 +1,10 @@
 //! `vgps simulate`: write a simulated drive directory (see `docs/simulate.md`).
 
-use super::CliError;
+use super::{CliError, SimulateSettings};
 use std::io::Write;
 use std::path::PathBuf;
 use vgps_geometry::geo::Geodetic;
-use vgps_sim::simulate::{Preset, Scenario, simulate};
+use vgps_sim::simulate::{Scenario, simulate};
 
 /// The presets on the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -74,19 +74,15 @@ fn parse_origin(text: &str) -> Result<Geodetic, String> {
 /// # Errors
 /// [`CliError::Calibration`] for an unreadable calibration or an invalid scenario (exit
 /// code 2), [`CliError::Output`] when a file cannot be written (exit code 1).
-pub fn run(args: &SimulateArgs, out: &mut dyn Write) -> Result<(), CliError> {
-    let preset = match args.preset {
-        PresetArg::Reference => Preset::Reference,
-        PresetArg::Short => Preset::Short,
-    };
-    let mut scenario = Scenario::preset(preset, args.seed);
-    if let Some(l) = args.length_m {
+pub fn run(settings: &SimulateSettings, out: &mut dyn Write) -> Result<(), CliError> {
+    let mut scenario = Scenario::preset(settings.preset, settings.seed);
+    if let Some(l) = settings.length_m {
         scenario.length_m = l;
     }
-    if let Some(o) = args.origin {
+    if let Some(o) = settings.origin {
         scenario.origin = o;
     }
-    if let Some(path) = &args.calibration {
+    if let Some(path) = &settings.calibration {
         scenario.rig = vgps_camera::calibration::load(path, None, None)
             .map_err(|e| CliError::Calibration(e.to_string()))?;
         scenario.calibration_name = path.display().to_string();
@@ -95,10 +91,10 @@ pub fn run(args: &SimulateArgs, out: &mut dyn Write) -> Result<(), CliError> {
     let drive =
         simulate(&scenario).map_err(|e| CliError::Calibration(format!("vgps simulate: {e}")))?;
     drive
-        .write(&args.out)
+        .write(&settings.out)
         .map_err(|e| CliError::Output(std::io::Error::other(e.to_string())))?;
-    let images = if args.images {
-        Some(write_images(&drive, args)?)
+    let images = if settings.images {
+        Some(write_images(&drive, settings)?)
     } else {
         None
     };
@@ -107,7 +103,7 @@ pub fn run(args: &SimulateArgs, out: &mut dyn Write) -> Result<(), CliError> {
     writeln!(
         out,
         "{}: {} frames, {:.0} m, {} landmarks ({} surveyed), {} detections ({} false), {} GNSS epochs, {:.0} % of the route without GPS fix; {:.2} s",
-        args.out.display(),
+        settings.out.display(),
         drive.frames.len(),
         drive.route.length_m,
         drive.world.landmarks.len(),
@@ -122,7 +118,8 @@ pub fn run(args: &SimulateArgs, out: &mut dyn Write) -> Result<(), CliError> {
         writeln!(
             out,
             "{}: {} images, {:.1} MB ({} lamp, {} transient, {} clutter spots)",
-            args.out
+            settings
+                .out
                 .join(vgps_sim::simulate::images::IMAGES_DIR)
                 .display(),
             s.images,
@@ -138,14 +135,11 @@ pub fn run(args: &SimulateArgs, out: &mut dyn Write) -> Result<(), CliError> {
 /// Renders and writes the images of `drive` (`--images`), with a progress bar on a terminal.
 fn write_images(
     drive: &vgps_sim::simulate::SimulatedDrive,
-    args: &SimulateArgs,
+    settings: &SimulateSettings,
 ) -> Result<vgps_sim::simulate::images::ImagesSummary, CliError> {
     use std::io::IsTerminal;
-    let threads = args
-        .threads
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
-        .max(1);
-    let bar = (!args.quiet && std::io::stderr().is_terminal()).then(|| {
+    let threads = settings.threads;
+    let bar = (!settings.quiet && std::io::stderr().is_terminal()).then(|| {
         let bar = indicatif::ProgressBar::new(drive.frames.len() as u64);
         bar.set_style(
             indicatif::ProgressStyle::with_template(
@@ -162,7 +156,7 @@ fn write_images(
     };
     let result = vgps_sim::simulate::images::write_images(
         drive,
-        &args.out,
+        &settings.out,
         &vgps_sim::simulate::images::ImageOptions::default(),
         threads,
         &progress,

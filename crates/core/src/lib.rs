@@ -7,6 +7,8 @@
 //! - [`localizer`]: the frame-by-frame localizer (tracking, re-acquisition, surrogates).
 //! - [`mapping`]: landmark mapping from a moving rig (association, covariance, surrogates,
 //!   survey mode, GPS time offset).
+//! - [`stats`]: the χ² quantile, Pearson correlation and median of the consistency tests and
+//!   summaries.
 //!
 //! The crates below it are re-exported ([`geometry`], [`geo`], [`calibration`], …), so one
 //! dependency is enough.
@@ -22,5 +24,6 @@ pub mod localizer;
 pub mod mapping;
 pub mod matcher;
 pub mod measurement;
+pub mod stats;
 #[cfg(any(test, feature = "synthetic"))]
 pub mod synthetic;

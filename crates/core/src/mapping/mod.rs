@@ -19,6 +19,9 @@
 //!   [`write_landmarks_csv`] writes in the format [`vgps_io::read_landmarks`] reads.
 //! - [`calibrate_gps_offset`]: the time offset between the GPS track and the camera that best
 //!   explains the rays (the paper's "about a metre behind" lag).
+//! - [`smooth_track`], [`track_covers`], [`frame_coverage`], [`landmark_chi2`]: the GNSS
+//!   track of a survey (smoothing, outages) and the checks a surveyed landmark passes before
+//!   it is written.
 //!
 //! The derivations, thresholds and measured figures are in `docs/mapping.md`.
 //!
@@ -38,6 +41,7 @@ mod frame;
 mod mapper;
 mod refine;
 mod survey;
+mod track;
 
 #[cfg(test)]
 mod tests;
@@ -55,6 +59,10 @@ pub use refine::{MapRay, ray_chi2, ray_residual_covariance, refine_landmark};
 pub use survey::{
     CameraFrame, GpsSample, SIGMA_LEVEL_RAD, Survey, SurveyOptions, gps_pose_at, landmarks_csv,
     survey, write_landmarks_csv,
+};
+pub use track::{
+    MAX_GNSS_GAP_S, MIN_SMOOTH_FIXES, frame_coverage, landmark_chi2, median_speed, smooth_track,
+    track_covers,
 };
 
 use nalgebra::{Matrix3, Vector3};
