@@ -1,5 +1,5 @@
 #![no_main]
-//! Fuzz target `jpeg_decode`: the body is [`vgps::fuzzing::jpeg_decode`].
+//! Fuzz target `jpeg_decode`: the body is [`vgps_fuzz_bodies::jpeg_decode`].
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| vgps::fuzzing::jpeg_decode(data));
+fuzz_target!(|data: &[u8]| vgps_fuzz_bodies::jpeg_decode(data));

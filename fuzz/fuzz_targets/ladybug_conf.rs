@@ -1,5 +1,5 @@
 #![no_main]
-//! Fuzz target `ladybug_conf`: the body is [`vgps::fuzzing::ladybug_conf`].
+//! Fuzz target `ladybug_conf`: the body is [`vgps_fuzz_bodies::ladybug_conf`].
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| vgps::fuzzing::ladybug_conf(data));
+fuzz_target!(|data: &[u8]| vgps_fuzz_bodies::ladybug_conf(data));

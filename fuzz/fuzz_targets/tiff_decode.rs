@@ -1,5 +1,5 @@
 #![no_main]
-//! Fuzz target `tiff_decode`: the body is [`vgps::fuzzing::tiff_decode`].
+//! Fuzz target `tiff_decode`: the body is [`vgps_fuzz_bodies::tiff_decode`].
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| vgps::fuzzing::tiff_decode(data));
+fuzz_target!(|data: &[u8]| vgps_fuzz_bodies::tiff_decode(data));
