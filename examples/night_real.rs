@@ -3,7 +3,7 @@
 //!
 //! Usage: `cargo run --release --example night_real -- DIR` where DIR holds `labels.csv`
 //! (`image,u,v,radius_px,certain`) and the images it names (`bench/night_real.sh` passes
-//! `../shared/realdata/night`). For each image: a certain lamp is found when a lamp
+//! the project's shared real-data folder). For each image: a certain lamp is found when a lamp
 //! detection lies within `max(1.5 · radius, 3 px)` of it; a lamp detection is true when it is
 //! the first within that distance of a certain lamp, excused (not counted) when it lies on a
 //! lamp labelled `certain = 0`, and false otherwise (a second detection on the same lamp is

@@ -523,18 +523,18 @@ fn image_decode(data: &[u8]) {
     }
 }
 
-/// Target `jpeg_decode`: JPEG bytes through [`image_decode`], and the frame-header walk.
+/// Target `jpeg_decode`: JPEG bytes through `image_decode`, and the frame-header walk.
 pub fn jpeg_decode(data: &[u8]) {
     let _ = jpeg_frame_header(data);
     image_decode(data);
 }
 
-/// Target `tiff_decode`: TIFF bytes through [`image_decode`].
+/// Target `tiff_decode`: TIFF bytes through `image_decode`.
 pub fn tiff_decode(data: &[u8]) {
     image_decode(data);
 }
 
-/// Target `bmp_decode`: BMP bytes through [`image_decode`].
+/// Target `bmp_decode`: BMP bytes through `image_decode`.
 pub fn bmp_decode(data: &[u8]) {
     image_decode(data);
 }
