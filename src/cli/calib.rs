@@ -73,7 +73,7 @@ pub struct SourceArgs {
     #[arg(long, value_parser = parse_format)]
     pub format: Option<Format>,
     /// Image size WxH (pixels) for a Ladybug INI export that names none.
-    #[arg(long, value_parser = parse_size)]
+    #[arg(long, value_parser = super::image_size::parse_image_size)]
     pub image_size: Option<(u32, u32)>,
 }
 
@@ -128,25 +128,6 @@ pub struct ConvertArgs {
 
 fn parse_format(s: &str) -> Result<Format, String> {
     s.parse()
-}
-
-/// Parses `WxH` (e.g. `1024x768`).
-fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .ok_or_else(|| format!("`{s}` is not WxH"))?;
-    let w: u32 = w
-        .trim()
-        .parse()
-        .map_err(|_| format!("bad width in `{s}`"))?;
-    let h: u32 = h
-        .trim()
-        .parse()
-        .map_err(|_| format!("bad height in `{s}`"))?;
-    if w == 0 || h == 0 {
-        return Err(format!("image size `{s}` must be non-zero"));
-    }
-    Ok((w, h))
 }
 
 /// Runs `vgps calib …` and returns the process exit code (0; 1 when `convert` cannot write
