@@ -16,16 +16,12 @@ use std::time::Instant;
 /// Leading bytes (the format's signature) left alone by 15 of 16 mutations.
 const KEEP: usize = 4;
 
-struct Rng(u64);
+/// The mutation source: ChaCha8, seeded for reproducible runs.
+struct Rng(rand_chacha::ChaCha8Rng);
 
 impl Rng {
     fn next(&mut self) -> u64 {
-        // SplitMix64.
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        rand::Rng::next_u64(&mut self.0)
     }
     fn below(&mut self, n: usize) -> usize {
         (self.next() % n.max(1) as u64) as usize
@@ -71,7 +67,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .first()
         .ok_or("usage: fuzz_mutate TARGET [EXECUTIONS] [SEED]")?;
     let executions: u64 = args.get(1).map_or(Ok(1_000_000), |s| s.parse())?;
-    let mut rng = Rng(args.get(2).map_or(Ok(1), |s| s.parse())?);
+    let mut rng = Rng(rand::SeedableRng::seed_from_u64(
+        args.get(2).map_or(Ok(1), |s| s.parse())?,
+    ));
     let body = vgps_fuzz_bodies::TARGETS
         .iter()
         .find(|(n, _)| n == name)

@@ -7,7 +7,7 @@ use std::path::Path;
 use vgps::calibration::{
     Camera, CameraMask, Equirectangular, EquirectangularParams, Rig, formats::nclt,
 };
-use vgps::drive::Frame;
+use vgps::drive::FrameRecord;
 use vgps::imaging::{LampDetector, detect_frame_images, encode_png};
 
 fn manifest(p: &str) -> std::path::PathBuf {
@@ -83,7 +83,7 @@ fn detections_on_masked_pixels_are_dropped() {
     })
     .expect("pano");
     let rig = Rig::panorama(Camera::from(pano));
-    let frame = Frame {
+    let frame = FrameRecord {
         frame: 0,
         time_s: 0.0,
         images: vec![Some("f.png".into())],

@@ -76,12 +76,12 @@ fn manifest_strict_and_lenient() {
 fn frames_detections_truth_landmarks_round_trip() {
     let p = Path::new("f.csv");
     let frames = vec![
-        Frame {
+        FrameRecord {
             frame: 0,
             time_s: 1_778_794_200.0666666,
             images: vec![Some("a/0.jpg".into()), None, Some("a/2.jpg".into())],
         },
-        Frame {
+        FrameRecord {
             frame: 3,
             time_s: 1_778_794_200.2,
             images: vec![None, None, None],
@@ -91,7 +91,7 @@ fn frames_detections_truth_landmarks_round_trip() {
         frames_from_text(p, &frames_to_csv(&frames)).unwrap(),
         frames
     );
-    let pano = vec![Frame {
+    let pano = vec![FrameRecord {
         frame: 1,
         time_s: 0.5,
         images: vec![Some("p.jpg".into())],
@@ -101,7 +101,7 @@ fn frames_detections_truth_landmarks_round_trip() {
     assert_eq!(frames_from_text(p, &text).unwrap(), pano);
 
     let detections = vec![
-        Detection {
+        PixelDetection {
             frame: 0,
             camera: 5,
             u: 12.345,
@@ -109,7 +109,7 @@ fn frames_detections_truth_landmarks_round_trip() {
             strength: Some(0.25),
             class: Some("streetlight".into()),
         },
-        Detection {
+        PixelDetection {
             frame: 3,
             camera: 0,
             u: 1023.5,
@@ -120,7 +120,7 @@ fn frames_detections_truth_landmarks_round_trip() {
     ];
     let rows =
         detections_from_text(Path::new("d.csv"), &detections_to_csv(&detections), 6).unwrap();
-    let back: Vec<Detection> = rows
+    let back: Vec<PixelDetection> = rows
         .into_iter()
         .map(|r| match r {
             DetectionRow::Ok(d) => d,

@@ -9,35 +9,24 @@
 //! Every error (unreadable or invalid file, bad input line) is printed on stderr naming the
 //! file and line, and exits with code 2.
 
-use nalgebra::{Matrix3, Vector2, Vector3};
+use nalgebra::{Vector2, Vector3};
 use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use vgps_camera::calibration::formats::{self, Format, LoadError, to_lut_rig};
-use vgps_camera::calibration::{Camera, CameraModel, Pixel, Rig};
-use vgps_geometry::geometry::{angle_between, try_unit};
+use vgps_camera::calibration::inspect::{
+    CHECK_ROUND_TRIP_PX, Coverage, MAX_COVERAGE_CAMERAS, TableCheck, azimuth_deg, check_camera,
+    elevation_deg, field_of_view,
+};
+use vgps_camera::calibration::{Camera, CameraModel, ROTATION_TOLERANCE, Rig};
+use vgps_geometry::geometry::try_unit;
 
 /// Exit code of every failure (bad input, invalid calibration, failed check).
 pub const EXIT_FAILURE: u8 = 2;
 
-/// Number of directions (a Fibonacci sphere) used for coverage figures.
-pub const COVERAGE_SAMPLES: usize = 20_000;
-
 /// Elevation (degrees) above which `show` reports the coverage (the spec's "most of the
 /// sphere above ~−30°").
 pub const COVERAGE_ELEVATION_DEG: f64 = -30.0;
-
-/// Largest accepted pixel → bearing → pixel round-trip error of `check` (pixels).
-pub const CHECK_ROUND_TRIP_PX: f64 = 1e-6;
-
-/// Largest accepted bearing → pixel → bearing round-trip error of `check` (radians).
-pub const CHECK_ROUND_TRIP_RAD: f64 = 1e-9;
-
-/// Pixels probed per image side by `check`'s round trip.
-pub const CHECK_GRID: usize = 97;
-
-/// Samples along an image line when measuring a field of view.
-pub const FOV_SAMPLES: usize = 2000;
 
 /// Arguments of `vgps calib`.
 #[derive(Debug, clap::Args)]
@@ -184,101 +173,7 @@ fn io_error(e: std::io::Error) -> String {
     format!("<stdout>: {e}")
 }
 
-/// `n` directions evenly spread on the unit sphere (Fibonacci lattice).
-pub fn fibonacci_sphere(n: usize) -> Vec<Vector3<f64>> {
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    (0..n)
-        .map(|i| {
-            let z = 1.0 - (2.0 * i as f64 + 1.0) / n as f64;
-            let r = (1.0 - z * z).max(0.0).sqrt();
-            let phi = golden * i as f64;
-            Vector3::new(r * phi.cos(), r * phi.sin(), z)
-        })
-        .collect()
-}
-
-/// Field of view (degrees) along the image line from `a` to `b` through `centre`: the
-/// largest angle from the centre's bearing towards `a` plus towards `b` over valid pixels.
-fn fov_along(model: &Camera, centre: &Pixel, a: &Pixel, b: &Pixel) -> Option<f64> {
-    let c = model.try_bearing(centre)?;
-    let half = |end: &Pixel| {
-        (0..=FOV_SAMPLES)
-            .filter_map(|k| {
-                let t = k as f64 / FOV_SAMPLES as f64;
-                model
-                    .try_bearing(&(centre + (end - centre) * t))
-                    .map(|x| angle_between(&c, &x))
-            })
-            .fold(0.0, f64::max)
-    };
-    Some((half(a) + half(b)).to_degrees())
-}
-
-/// Coverage statistics over a Fibonacci sphere.
-struct Coverage {
-    /// Per sample: bit mask of the cameras that see it.
-    seen_by: Vec<u64>,
-    directions: Vec<Vector3<f64>>,
-}
-
-impl Coverage {
-    fn new(rig: &Rig) -> Self {
-        let directions = fibonacci_sphere(COVERAGE_SAMPLES);
-        let seen_by = directions
-            .iter()
-            .map(|d| {
-                rig.project_direction(d)
-                    .iter()
-                    .filter(|p| p.camera < 64)
-                    .fold(0u64, |m, p| m | (1 << p.camera))
-            })
-            .collect();
-        Self {
-            seen_by,
-            directions,
-        }
-    }
-
-    fn fraction(&self, keep: impl Fn(u64, &Vector3<f64>) -> bool) -> f64 {
-        let n = self
-            .seen_by
-            .iter()
-            .zip(&self.directions)
-            .filter(|(m, d)| keep(**m, d))
-            .count();
-        n as f64 / self.directions.len() as f64
-    }
-
-    /// The lowest elevation (degrees) above which every sample is covered, or `None` when
-    /// the zenith itself is not covered.
-    fn covered_above(&self) -> Option<f64> {
-        let mut highest_gap = f64::NEG_INFINITY;
-        for (m, d) in self.seen_by.iter().zip(&self.directions) {
-            if *m == 0 {
-                highest_gap = highest_gap.max(d.z.clamp(-1.0, 1.0).asin().to_degrees());
-            }
-        }
-        if highest_gap == f64::NEG_INFINITY {
-            Some(-90.0)
-        } else if highest_gap >= 89.0 {
-            None
-        } else {
-            Some(highest_gap)
-        }
-    }
-}
-
-fn elevation_deg(d: &Vector3<f64>) -> f64 {
-    d.z.clamp(-1.0, 1.0).asin().to_degrees()
-}
-
-fn azimuth_deg(d: &Vector3<f64>) -> f64 {
-    d.y.atan2(d.x).to_degrees()
-}
-
 fn show(path: &Path, rig: &Rig) -> Result<(), String> {
-    let stdout = std::io::stdout();
-    let mut out = stdout.lock();
     let mut text = format!("{}: {} camera(s)\n", path.display(), rig.len());
     for (i, c) in rig.cameras().iter().enumerate() {
         let (w, h) = c.model.image_size();
@@ -298,47 +193,38 @@ fn show(path: &Path, rig: &Rig) -> Result<(), String> {
             azimuth_deg(&axis),
             elevation_deg(&axis),
         );
-        if w > 0 {
-            let (wf, hf) = (f64::from(w) - 0.5, f64::from(h) - 0.5);
-            let centre = Vector2::new((wf - 0.5) / 2.0, (hf - 0.5) / 2.0);
-            let fov = |a: Pixel, b: Pixel| {
-                fov_along(&c.model, &centre, &a, &b)
-                    .map_or_else(|| "n/a".to_string(), |f| format!("{f:.1}°"))
-            };
+        if let Some(fov) = field_of_view(&c.model) {
+            let deg = |f: Option<f64>| f.map_or_else(|| "n/a".to_string(), |f| format!("{f:.1}°"));
             text += &format!(
                 "  field of view: {} across (u), {} down (v), {} diagonal\n",
-                fov(Vector2::new(-0.5, centre.y), Vector2::new(wf, centre.y)),
-                fov(Vector2::new(centre.x, -0.5), Vector2::new(centre.x, hf)),
-                fov(Vector2::new(-0.5, -0.5), Vector2::new(wf, hf)),
+                deg(fov.across_deg),
+                deg(fov.down_deg),
+                deg(fov.diagonal_deg),
             );
         }
     }
-    if rig.cameras().iter().any(|c| c.model.image_size().0 == 0) {
+    let Some(cov) = Coverage::try_new(rig) else {
         text += "coverage: not computed (unbounded images; give --image-size)\n";
-        return out.write_all(text.as_bytes()).map_err(io_error);
-    }
-    let cov = Coverage::new(rig);
-    let low = COVERAGE_ELEVATION_DEG.to_radians().sin();
-    let above = cov.fraction(|_, d| d.z >= low);
+        return write_stdout(&text);
+    };
     text += &format!(
         "sphere covered: {:.2} % (by two or more cameras: {:.2} %)\n",
-        100.0 * cov.fraction(|m, _| m != 0),
-        100.0 * cov.fraction(|m, _| m.count_ones() >= 2)
+        100.0 * cov.seen_by_at_least(1),
+        100.0 * cov.seen_by_at_least(2)
     );
     text += &format!(
         "above {COVERAGE_ELEVATION_DEG}° elevation: {:.2} % covered\n",
-        100.0 * cov.fraction(|m, d| m != 0 && d.z >= low) / above
+        100.0 * cov.seen_above(COVERAGE_ELEVATION_DEG)
     );
     match cov.covered_above() {
         Some(e) => text += &format!("every direction above {e:.1}° elevation is covered\n"),
         None => text += "the zenith is not covered\n",
     }
-    let n = rig.len().min(64);
+    let n = rig.len().min(MAX_COVERAGE_CAMERAS);
     let mut pairs = String::new();
     for i in 0..n {
         for j in i + 1..n {
-            let both = (1u64 << i) | (1u64 << j);
-            let f = cov.fraction(|m, _| m & both == both);
+            let f = cov.overlap(i, j);
             if f > 0.0 {
                 pairs += &format!("  cameras {i} and {j}: {:.2} % of the sphere\n", 100.0 * f);
             }
@@ -350,153 +236,80 @@ fn show(path: &Path, rig: &Rig) -> Result<(), String> {
         text += "overlaps (directions seen by both):\n";
         text += &pairs;
     }
-    out.write_all(text.as_bytes()).map_err(io_error)
+    write_stdout(&text)
 }
 
-/// Deterministic probe pixels of a camera: a grid over the image rectangle (inset by a
-/// hundredth of a pixel) with irrational offsets; for an unbounded image, over
-/// `[0, 2 cx] × [0, 2 cy]`.
-fn probe_pixels(model: &Camera) -> Vec<Pixel> {
-    let (w, h) = model.image_size();
-    let (w, h) = if w == 0 {
-        match model {
-            Camera::TabulatedPinhole(m) => {
-                let p = m.params();
-                ((2.0 * p.cx + 1.0).max(2.0), (2.0 * p.cy + 1.0).max(2.0))
-            }
-            _ => (2.0, 2.0),
-        }
-    } else {
-        (f64::from(w), f64::from(h))
-    };
-    let n = CHECK_GRID;
-    let mut out = Vec::with_capacity(n * n);
-    for j in 0..n {
-        for i in 0..n {
-            let fu = (i as f64 + 0.5 * (i % 2) as f64 * 0.618) / (n - 1) as f64;
-            let fv = (j as f64 + 0.5 * (j % 2) as f64 * 0.414) / (n - 1) as f64;
-            let u = -0.49 + fu.min(1.0) * (w - 0.98);
-            let v = -0.49 + fv.min(1.0) * (h - 0.98);
-            out.push(Vector2::new(u, v));
-        }
-    }
-    out
-}
-
-/// The smallest `((b10 − b00) × (b01 − b00)) · b00` over the cells of a LUT (> 0 when every
-/// cell keeps the image's orientation).
-fn lut_min_orientation(lut: &vgps_camera::calibration::Lut) -> f64 {
-    let (cols, rows) = lut.grid_size();
-    let b = &lut.params().bearings;
-    let v = |i: usize, j: usize| {
-        let x = b[j * cols + i];
-        Vector3::new(f64::from(x[0]), f64::from(x[1]), f64::from(x[2]))
-    };
-    let mut min = f64::INFINITY;
-    for j in 0..rows - 1 {
-        for i in 0..cols - 1 {
-            let b00 = v(i, j);
-            min = min.min((v(i + 1, j) - b00).cross(&(v(i, j + 1) - b00)).dot(&b00));
-        }
-    }
-    min
+fn write_stdout(text: &str) -> Result<(), String> {
+    std::io::stdout()
+        .lock()
+        .write_all(text.as_bytes())
+        .map_err(io_error)
 }
 
 fn check(path: &Path, rig: &Rig) -> Result<(), String> {
+    let ok_or_fail = |ok: bool| if ok { "ok" } else { "FAIL" };
     let mut text = format!("{}: {} camera(s)\n", path.display(), rig.len());
     let mut failures = Vec::new();
     for (i, c) in rig.cameras().iter().enumerate() {
         text += &format!("camera {i} ({}):\n", c.model.model_name());
-        let r: &Matrix3<f64> = c.rig_from_camera.rotation.matrix();
-        let dev = (r.transpose() * r - Matrix3::identity())
-            .abs()
-            .max()
-            .max((r.determinant() - 1.0).abs());
-        let ok = dev <= vgps_camera::calibration::ROTATION_TOLERANCE;
+        let r = check_camera(c);
         text += &format!(
-            "  rotation orthonormality: max |RᵀR − I|, |det R − 1| = {dev:.2e} (limit {:.0e}) {}\n",
-            vgps_camera::calibration::ROTATION_TOLERANCE,
-            if ok { "ok" } else { "FAIL" }
+            "  rotation orthonormality: max |RᵀR − I|, |det R − 1| = {:.2e} (limit {ROTATION_TOLERANCE:.0e}) {}\n",
+            r.rotation_deviation,
+            ok_or_fail(r.rotation_passed())
         );
-        if !ok {
+        if !r.rotation_passed() {
             failures.push(format!("camera {i}: rotation not orthonormal"));
         }
-        let probes = probe_pixels(&c.model);
-        let (mut worst_px, mut worst_rad, mut valid, mut lost) = (0.0f64, 0.0f64, 0usize, 0usize);
-        for p in &probes {
-            let Some(b) = c.model.try_bearing(p) else {
-                continue;
-            };
-            valid += 1;
-            match c.model.try_pixel(&b) {
-                Some(q) => {
-                    worst_px = worst_px.max((q - p).norm());
-                    if let Some(b2) = c.model.try_bearing(&q) {
-                        worst_rad = worst_rad.max(angle_between(&b, &b2));
-                    }
-                }
-                None => lost += 1,
-            }
-        }
-        let ok = lost == 0 && worst_px <= CHECK_ROUND_TRIP_PX && worst_rad <= CHECK_ROUND_TRIP_RAD;
         text += &format!(
-            "  round trip pixel → bearing → pixel over {valid} valid of {} probes: max {worst_px:.2e} px \
-             (limit {CHECK_ROUND_TRIP_PX:.0e}), bearing {worst_rad:.2e} rad, {lost} without a pixel {}\n",
-            probes.len(),
-            if ok { "ok" } else { "FAIL" }
+            "  round trip pixel → bearing → pixel over {} valid of {} probes: max {:.2e} px \
+             (limit {CHECK_ROUND_TRIP_PX:.0e}), bearing {:.2e} rad, {} without a pixel {}\n",
+            r.valid,
+            r.probes,
+            r.worst_round_trip_px,
+            r.worst_round_trip_rad,
+            r.lost,
+            ok_or_fail(r.round_trip_passed())
         );
-        if !ok {
+        if !r.round_trip_passed() {
             failures.push(format!("camera {i}: round trip"));
         }
-        match &c.model {
-            Camera::Lut(lut) => {
-                let m = lut_min_orientation(lut);
-                let ok = m > 0.0;
+        match &r.tables {
+            Some(t @ TableCheck::Lut { min_orientation }) => {
                 text += &format!(
-                    "  LUT monotonicity: min cell orientation {m:.2e} (must be > 0) {}\n",
-                    if ok { "ok" } else { "FAIL" }
+                    "  LUT monotonicity: min cell orientation {min_orientation:.2e} (must be > 0) {}\n",
+                    ok_or_fail(t.passed())
                 );
-                if !ok {
+                if !t.passed() {
                     failures.push(format!("camera {i}: LUT not monotonic"));
                 }
             }
-            Camera::TabulatedPinhole(m) => {
-                let p = m.params();
-                if let (Some(d2u), Some(u2d)) = (&p.raw_to_undistorted, &p.undistorted_to_raw) {
-                    let (a, b) = (
-                        d2u.min_jacobian_determinant(),
-                        u2d.min_jacobian_determinant(),
-                    );
-                    let ok = a > 0.0 && b > 0.0;
-                    text += &format!(
-                        "  table monotonicity: min cell Jacobian determinant D2U {a:.3}, U2D {b:.3} (must be > 0) {}\n",
-                        if ok { "ok" } else { "FAIL" }
-                    );
-                    if !ok {
-                        failures.push(format!("camera {i}: table not monotonic"));
-                    }
-                    // Consistency of the two tables at the raw pixel centres.
-                    let mut worst: f64 = 0.0;
-                    for r in 0..d2u.height {
-                        for col in 0..d2u.width {
-                            let px = Vector2::new(f64::from(col), f64::from(r));
-                            let q = d2u.interpolate(&px).0;
-                            worst = worst.max((u2d.interpolate(&q).0 - px).norm());
-                        }
-                    }
-                    text += &format!(
-                        "  table consistency: max |U2D(D2U(p)) − p| = {worst:.2e} px (information: only D2U defines the model)\n"
-                    );
-                } else {
-                    text += "  no distortion table\n";
+            Some(
+                t @ TableCheck::Distortion {
+                    min_jacobian_d2u,
+                    min_jacobian_u2d,
+                    worst_inconsistency_px,
+                },
+            ) => {
+                text += &format!(
+                    "  table monotonicity: min cell Jacobian determinant D2U {min_jacobian_d2u:.3}, U2D {min_jacobian_u2d:.3} (must be > 0) {}\n",
+                    ok_or_fail(t.passed())
+                );
+                if !t.passed() {
+                    failures.push(format!("camera {i}: table not monotonic"));
                 }
+                text += &format!(
+                    "  table consistency: max |U2D(D2U(p)) − p| = {worst_inconsistency_px:.2e} px (information: only D2U defines the model)\n"
+                );
             }
-            _ => {}
+            None if matches!(c.model, Camera::TabulatedPinhole(_)) => {
+                text += "  no distortion table\n";
+            }
+            None => {}
         }
     }
-    if rig.cameras().iter().all(|c| c.model.image_size().0 > 0) {
-        let cov = Coverage::new(rig);
-        let gaps = cov.fraction(|m, _| m == 0);
+    if let Some(cov) = Coverage::try_new(rig) {
+        let gaps = 1.0 - cov.seen_by_at_least(1);
         text += &format!(
             "coverage: {:.2} % of the sphere seen, gaps {:.2} %",
             100.0 * (1.0 - gaps),
@@ -506,29 +319,19 @@ fn check(path: &Path, rig: &Rig) -> Result<(), String> {
             Some(e) => text += &format!("; no gap above {e:.1}° elevation\n"),
             None => text += "; the zenith is not covered\n",
         }
-        let horizon_gaps = (0..3600)
-            .filter(|k| {
-                let a = (*k as f64 / 10.0).to_radians();
-                rig.project_direction(&Vector3::new(a.cos(), a.sin(), 0.0))
-                    .is_empty()
-            })
-            .count();
         text += &format!(
             "horizon: {:.1}° of 360° azimuth not seen by any camera (information)\n",
-            horizon_gaps as f64 / 10.0
+            cov.horizon_gap_deg()
         );
     } else {
         text += "coverage: not computed (unbounded images)\n";
     }
     if failures.is_empty() {
         text += "check: ok\n";
-        std::io::stdout()
-            .lock()
-            .write_all(text.as_bytes())
-            .map_err(io_error)
+        write_stdout(&text)
     } else {
         text += &format!("check: FAILED ({})\n", failures.join("; "));
-        let _ = std::io::stdout().lock().write_all(text.as_bytes());
+        let _ = write_stdout(&text);
         Err(format!("{}: check failed", path.display()))
     }
 }

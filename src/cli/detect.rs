@@ -17,7 +17,7 @@ use std::collections::BTreeMap;
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use vgps_replay::drive::{Detection, Drive, detections_to_csv, write_text};
+use vgps_replay::drive::{Drive, PixelDetection, detections_to_csv, write_text};
 
 /// The default output file name when the drive has no detections file yet.
 pub const DEFAULT_OUT_NAME: &str = "detections.csv";
@@ -159,7 +159,7 @@ pub fn run(
         frames: frames.len(),
         ..DetectSummary::default()
     };
-    let mut detections: Vec<Detection> = Vec::new();
+    let mut detections: Vec<PixelDetection> = Vec::new();
     for r in &mut results {
         summary.images += r.images;
         if r.is_unusable() {

@@ -15,7 +15,7 @@ use vgps_core::matcher::{
 use vgps_geometry::attitude::HeadingPitchRoll;
 use vgps_geometry::geo::{Geodetic, LocalFrame};
 use vgps_geometry::geometry::Ray;
-use vgps_io::{InputError, Landmark, Measurement, Observation};
+use vgps_io::{InputError, Landmark, Measurement, ObservationRecord};
 
 /// Status of a frame whose observations carry no landmark ids when neither `--prior` nor
 /// `--region` says where to search.
@@ -158,7 +158,7 @@ pub struct LocateInput<'a> {
     /// Their file (for error messages).
     pub landmarks_path: &'a Path,
     /// The observations.
-    pub observations: &'a [Observation],
+    pub observations: &'a [ObservationRecord],
     /// Their file (for error messages).
     pub observations_path: &'a Path,
     /// The rig calibration that turns pixel observations into rays (origin = camera centre
@@ -232,7 +232,7 @@ pub fn locate(
     let mut reports = Vec::with_capacity(frames.len());
     let mut matcher_db: Option<LandmarkDb> = None;
     for (number, indices) in frames {
-        let rows: Vec<&Observation> = indices.iter().map(|&k| &observations[k]).collect();
+        let rows: Vec<&ObservationRecord> = indices.iter().map(|&k| &observations[k]).collect();
         let identified: Option<Vec<(Ray, Geodetic, f64)>> =
             indices.iter().map(|&k| resolved[k]).collect();
         let (Some(identified), Some(local)) = (identified, frame.as_ref()) else {
@@ -416,7 +416,7 @@ fn centroid<'a>(positions: impl Iterator<Item = &'a Geodetic>) -> Option<Geodeti
 }
 
 /// Converts a fix in the local frame into the output record.
-fn report(number: u64, rows: &[&Observation], fix: &Fix, local: &LocalFrame) -> FrameReport {
+fn report(number: u64, rows: &[&ObservationRecord], fix: &Fix, local: &LocalFrame) -> FrameReport {
     let n = rows.len();
     let Some(estimate) = fix
         .estimate

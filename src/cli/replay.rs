@@ -83,7 +83,7 @@ pub struct ReplayArgs {
 /// borrowed from the drive).
 enum FrameDetections<'a> {
     Ok {
-        detections: std::borrow::Cow<'a, [vgps_replay::drive::Detection]>,
+        detections: std::borrow::Cow<'a, [vgps_replay::drive::PixelDetection]>,
         unusable_images: Option<u32>,
         problems: Option<String>,
     },
@@ -94,7 +94,7 @@ enum FrameDetections<'a> {
 }
 
 impl<'a> FrameDetections<'a> {
-    fn from_file(detections: &'a [vgps_replay::drive::Detection]) -> Self {
+    fn from_file(detections: &'a [vgps_replay::drive::PixelDetection]) -> Self {
         Self::Ok {
             detections: std::borrow::Cow::Borrowed(detections),
             unusable_images: None,
@@ -210,7 +210,7 @@ fn warn_about_drive(drive: &Drive, dir: &Path, err: &mut dyn Write) {
 /// reported on `err`; the frame's readable rows are still used).
 fn file_detections<'a>(
     drive: &'a Drive,
-    batch: &[vgps_replay::drive::Frame],
+    batch: &[vgps_replay::drive::FrameRecord],
     err: &mut dyn Write,
 ) -> Vec<FrameDetections<'a>> {
     batch
@@ -238,7 +238,7 @@ impl FrameStep<'_, '_> {
     /// without usable images is reported as [`BAD_IMAGE_STATUS`] on `err` and in the record).
     fn record(
         &mut self,
-        f: &vgps_replay::drive::Frame,
+        f: &vgps_replay::drive::FrameRecord,
         d: FrameDetections<'_>,
         err: &mut dyn Write,
     ) -> FrameRecord {
@@ -350,7 +350,7 @@ fn visual_of(fix: &LocalizerFix) -> Option<VisualFix> {
 /// Decodes and detects the images of a batch of frames on `threads` threads.
 fn detect_batch(
     drive: &Drive,
-    batch: &[vgps_replay::drive::Frame],
+    batch: &[vgps_replay::drive::FrameRecord],
     threads: usize,
 ) -> Vec<FrameDetections<'static>> {
     let detector = LampDetector::default();
@@ -389,7 +389,7 @@ fn detect_batch(
 /// Decodes and detects one frame's images.
 fn detect_frame(
     drive: &Drive,
-    frame: &vgps_replay::drive::Frame,
+    frame: &vgps_replay::drive::FrameRecord,
     detector: &LampDetector,
 ) -> FrameDetections<'static> {
     if frame.images.iter().all(Option::is_none) {

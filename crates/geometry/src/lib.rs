@@ -40,6 +40,7 @@ pub mod geo;
 pub mod geometry;
 pub mod robust;
 pub mod solvers;
+mod sym3;
 #[cfg(any(test, feature = "synthetic"))]
 pub mod synthetic;
 pub mod triangulation;

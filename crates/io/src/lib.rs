@@ -45,7 +45,9 @@ pub mod table;
 
 pub use atomic::write_atomic;
 pub use landmarks::{Landmark, landmarks_from_reader, read_landmarks};
-pub use observations::{Measurement, Observation, observations_from_reader, read_observations};
+pub use observations::{
+    Measurement, ObservationRecord, observations_from_reader, read_observations,
+};
 pub use rays::{RayRecord, rays_from_reader, read_rays};
 
 use std::path::PathBuf;

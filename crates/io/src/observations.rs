@@ -30,7 +30,7 @@ pub enum Measurement {
 
 /// One row of the observations file.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Observation {
+pub struct ObservationRecord {
     /// The frame (image/epoch) the observation belongs to; 0 when the file has no `frame`
     /// column.
     pub frame: u64,
@@ -50,7 +50,7 @@ pub struct Observation {
 /// duplicated or missing column, both or neither of the bearing and pixel column groups),
 /// wrong field count, non-number or non-finite value, a zero bearing, a `frame` that is not a
 /// non-negative integer.
-pub fn read_observations(path: &Path) -> Result<Vec<Observation>, InputError> {
+pub fn read_observations(path: &Path) -> Result<Vec<ObservationRecord>, InputError> {
     observations_from_reader(path, open(path)?)
 }
 
@@ -61,7 +61,7 @@ pub fn read_observations(path: &Path) -> Result<Vec<Observation>, InputError> {
 pub fn observations_from_reader<R: Read>(
     path: &Path,
     reader: R,
-) -> Result<Vec<Observation>, InputError> {
+) -> Result<Vec<ObservationRecord>, InputError> {
     let table = Table::read(path, reader, COLUMNS, EXPECTED)?;
     let has_bearing = BEARING.iter().any(|c| table.has(c));
     let has_pixel = PIXEL.iter().any(|c| table.has(c));
@@ -112,7 +112,7 @@ pub fn observations_from_reader<R: Read>(
             })?;
             Measurement::Bearing(unit)
         };
-        out.push(Observation {
+        out.push(ObservationRecord {
             frame,
             measurement,
             landmark: row.optional_str("landmark").map(str::to_string),
@@ -139,7 +139,7 @@ fn frame(row: &Row<'_>) -> Result<u64, InputError> {
 mod tests {
     use super::*;
 
-    fn read(text: &str) -> Result<Vec<Observation>, InputError> {
+    fn read(text: &str) -> Result<Vec<ObservationRecord>, InputError> {
         observations_from_reader(Path::new("O.csv"), text.as_bytes())
     }
 

@@ -7,7 +7,7 @@
 //! be used — a missing file, a non-PNG or corrupt file, a frame of the wrong size — so that
 //! a run can report it and go on with the next frame.
 
-use crate::drive::{Detection, Frame};
+use crate::drive::{FrameRecord, PixelDetection};
 use std::path::Path;
 use vgps_camera::calibration::Rig;
 use vgps_camera::imaging::{
@@ -86,7 +86,7 @@ pub struct FrameImageResult {
     pub frame: u64,
     /// The lamp detections of the usable images (class `None`, `strength` = the
     /// background-subtracted sum of the blob in DN), camera by camera.
-    pub detections: Vec<Detection>,
+    pub detections: Vec<PixelDetection>,
     /// Number of images named by the frame.
     pub images: usize,
     /// The images that could not be used.
@@ -123,12 +123,12 @@ impl FrameImageResult {
 ///
 /// # Example
 /// ```
-/// use vgps_replay::drive::Frame;
+/// use vgps_replay::drive::FrameRecord;
 /// use vgps_camera::imaging::LampDetector;
 /// use vgps_replay::frame_images::{ImageProblemKind, detect_frame_images};
 /// let rig = vgps_sim::simulate::default_rig()?;
 /// let dir = tempfile::tempdir()?;
-/// let frame = Frame { frame: 3, time_s: 0.0, images: vec![Some("none.png".into()), None] };
+/// let frame = FrameRecord { frame: 3, time_s: 0.0, images: vec![Some("none.png".into()), None] };
 /// let result = detect_frame_images(dir.path(), &frame, &rig, &LampDetector::default());
 /// assert_eq!(result.images, 1);
 /// assert_eq!(result.problems[0].kind, ImageProblemKind::Missing);
@@ -137,7 +137,7 @@ impl FrameImageResult {
 /// ```
 pub fn detect_frame_images(
     drive_dir: &Path,
-    frame: &Frame,
+    frame: &FrameRecord,
     rig: &Rig,
     detector: &LampDetector,
 ) -> FrameImageResult {
@@ -169,7 +169,7 @@ pub fn detect_frame_images(
                     .lamps
                     .iter()
                     .filter(|l| !rig.is_masked(camera, &nalgebra::Vector2::new(l.u, l.v)))
-                    .map(|l| Detection {
+                    .map(|l| PixelDetection {
                         frame: frame.frame,
                         camera,
                         u: l.u,

@@ -49,6 +49,7 @@ mod bspline;
 mod camera;
 mod equirectangular;
 pub mod formats;
+pub mod inspect;
 mod kannala_brandt;
 mod lut;
 mod mask;

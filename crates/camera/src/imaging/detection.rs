@@ -2,7 +2,7 @@
 
 /// One detection: a pixel in one camera of one frame.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Detection {
+pub struct PixelDetection {
     /// The frame.
     pub frame: u64,
     /// The camera index in the rig.

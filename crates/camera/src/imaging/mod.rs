@@ -51,7 +51,7 @@ pub use decode::{DecodeLimits, check_dimensions, decode_png, encode_png, read_pn
 pub use detect::{
     CentroidWeight, Detections, DetectorConfig, LampDetection, LampDetector, Mask, Threshold,
 };
-pub use detection::Detection;
+pub use detection::PixelDetection;
 pub use formats::{ImageFormat, decode_image, decode_image_named, read_image};
 pub use street::{LampClass, StreetDetection, StreetDetections, StreetLampDetector};
 

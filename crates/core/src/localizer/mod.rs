@@ -272,7 +272,7 @@ impl Frame {
     /// landmarks, so it is dropped).
     pub fn from_detections(
         time_s: f64,
-        detections: &[vgps_camera::imaging::Detection],
+        detections: &[vgps_camera::imaging::PixelDetection],
         map: &LandmarkMap,
         gnss: Option<GnssPosition>,
     ) -> Self {

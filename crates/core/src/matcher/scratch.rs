@@ -1,10 +1,9 @@
-//! Small utilities of the search: the key and hasher of the per-triple P3P cache, the
-//! thread-local pool of cell buffers, bit sets and the reproducible shuffle.
+//! Small utilities of the search: the key of the per-triple P3P cache (hashed by
+//! `rustc_hash::FxBuildHasher`: the standard SipHash cost as much as a third of a P3P solve), the
+//! thread-local pool of cell buffers and bit sets.
 
 use super::pairs::CellData;
 use nalgebra::Vector3;
-use rand::RngExt;
-use rand::SeedableRng;
 use std::cell::RefCell;
 use std::hash::Hasher;
 
@@ -17,28 +16,6 @@ impl std::hash::Hash for TripleKey {
         // One word per key: collisions cost a comparison, never a wrong answer.
         let [i, j, k] = self.0.map(|x| x as u64);
         state.write_u64(i ^ j.rotate_left(21) ^ k.rotate_left(42));
-    }
-}
-
-/// A multiply hasher for [`TripleKey`] (one `write_u64` per key): the standard SipHash
-/// cost as much as a third of a P3P solve.
-#[derive(Default)]
-pub(super) struct TripleHasher(u64);
-
-impl Hasher for TripleHasher {
-    fn finish(&self) -> u64 {
-        // A product's low bits depend only on the factor's low bits, and the table takes
-        // its bucket from the low bits: bring the well-mixed high half down.
-        self.0.rotate_left(26)
-    }
-    fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.write_u64(u64::from(b));
-        }
-    }
-    fn write_u64(&mut self, i: u64) {
-        // The constant of FxHash (rustc's hasher).
-        self.0 = (self.0.rotate_left(5) ^ i).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
     }
 }
 
@@ -119,14 +96,5 @@ pub(super) fn for_each_bit(bits: &[u64], mut f: impl FnMut(usize)) {
             f(w * 64 + rest.trailing_zeros() as usize);
             rest &= rest - 1;
         }
-    }
-}
-
-/// Fisher–Yates shuffle with the crate's reproducible generator.
-pub(super) fn shuffle<T>(items: &mut [T], seed: u64) {
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    for i in (1..items.len()).rev() {
-        let j = rng.random_range(0..=i);
-        items.swap(i, j);
     }
 }

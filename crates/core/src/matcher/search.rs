@@ -8,16 +8,17 @@ use super::cells::cells;
 use super::conclusion::conclude;
 use super::pairs::{CellData, PairContext, cell_data};
 use super::scoring::ConclusionCache;
-use super::scratch::{Cells, TripleHasher, TripleKey, for_each_bit, shuffle};
+use super::scratch::{Cells, TripleKey, for_each_bit};
 use super::{
     CORE_GROWTH, DUPLICATE_ANGLE_RAD, Detection, HYPOTHESIS_THRESHOLD_FACTOR, LandmarkDb,
     MAX_CONFIRMATION_TRIPLES, MIN_TRIPLE_ANGLE_RAD, MatchError, MatchOptions, MatchResult,
     MatchStatus, STOP_CONFIRMATIONS, STOP_MIN_INLIER_FRACTION, SearchArea, UP_CHECK_MARGIN_RAD,
 };
 use nalgebra::Vector3;
+use rand::SeedableRng;
+use rand::seq::SliceRandom;
 use std::collections::HashMap;
 use std::collections::hash_map::Entry;
-use std::hash::BuildHasherDefault;
 use vgps_geometry::geometry::{Pose, PoseSolutions, angle_between, try_unit};
 use vgps_geometry::solvers::p3p::{P3pBearings, p3p_prepared_into};
 
@@ -363,7 +364,7 @@ struct TripleWork {
     /// `solved_ranges`). A detection triple solves about 700 distinct landmark triples over
     /// a 30 m prior: sized once, so that it does not grow by rehashing during the first
     /// triple.
-    solved: HashMap<TripleKey, usize, BuildHasherDefault<TripleHasher>>,
+    solved: HashMap<TripleKey, usize, rustc_hash::FxBuildHasher>,
     /// The distinct landmark triples to solve (their points).
     to_solve: Vec<[Vector3<f64>; 3]>,
     /// The landmark triples of the cells in visiting order (cell, candidates, index into
@@ -380,7 +381,10 @@ impl TripleWork {
     fn new() -> Self {
         Self {
             survivors: Vec::new(),
-            solved: HashMap::with_capacity_and_hasher(SOLVED_TRIPLES_CAPACITY, Default::default()),
+            solved: HashMap::with_capacity_and_hasher(
+                SOLVED_TRIPLES_CAPACITY,
+                rustc_hash::FxBuildHasher,
+            ),
             to_solve: Vec::new(),
             work: Vec::new(),
             solved_poses: Vec::new(),
@@ -470,7 +474,7 @@ fn round_triples(
             }
         }
     }
-    shuffle(&mut triples, seed);
+    triples.shuffle(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed));
     triples.truncate(budget);
     triples.sort_by_key(|t| t.iter().map(|&d| allowed_counts[d]).max());
     triples

@@ -15,6 +15,7 @@
 
 use crate::matcher::{DbLandmark, LandmarkDb, MatchError, SearchArea};
 use nalgebra::{Rotation3, Translation3, Vector3};
+use rand::seq::SliceRandom;
 use rand::{Rng, RngExt};
 use vgps_geometry::geometry::{Pose, bearing_in_rig};
 use vgps_geometry::synthetic::{normal, perturb_bearing, random_unit_vector};
@@ -385,7 +386,7 @@ impl CityWorld {
         config: &FrameConfig,
     ) -> SyntheticFrame {
         let mut visible = self.visible(pose, config.visibility_m);
-        shuffle(rng, &mut visible);
+        visible.shuffle(rng);
         visible.truncate(config.true_detections);
         let mut items: Vec<(Vector3<f64>, Option<u32>, Option<usize>)> = Vec::new();
         for &k in &visible {
@@ -404,7 +405,7 @@ impl CityWorld {
             });
             items.push((random_unit_vector(rng), class, None));
         }
-        shuffle(rng, &mut items);
+        items.shuffle(rng);
         SyntheticFrame {
             detections: items.iter().map(|i| i.0).collect(),
             classes: items.iter().map(|i| i.1).collect(),
@@ -420,13 +421,6 @@ fn unreachable_area(centre: &Vector3<f64>) -> SearchArea {
         min_in_world: *centre,
         max_in_world: *centre,
         horizontal_radius_m: None,
-    }
-}
-
-fn shuffle<R: Rng + ?Sized, T>(rng: &mut R, items: &mut [T]) {
-    for i in (1..items.len()).rev() {
-        let j = rng.random_range(0..=i);
-        items.swap(i, j);
     }
 }
 

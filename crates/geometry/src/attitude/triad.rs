@@ -32,6 +32,12 @@ pub const MIN_TRIAD_SINE: f64 = 1e-10;
 /// `None` when a direction is zero or not finite, or when the two directions of a frame are
 /// parallel or anti-parallel (sine of their angle ≤ [`MIN_TRIAD_SINE`]).
 ///
+/// # Role in vgps
+/// The proposal's rotational inference, kept as the **reference and cross-check**: production
+/// attitude comes with the position from [`crate::solvers::refine_pose`] (jointly optimal over
+/// every landmark, with its covariance); [`wahba`](super::wahba) is the optimal attitude from
+/// many directions when the position is known.
+///
 /// # Example
 /// ```
 /// use nalgebra::{Rotation3, Vector3};

@@ -45,6 +45,7 @@
 
 use super::cubic::outer_real_root;
 use crate::geometry::{Pose, PoseSolutions};
+use crate::sym3::Sym3;
 use nalgebra::{Matrix3, Rotation3, Translation3, Vector3};
 
 /// Smallest sine of the angle between two bearings: closer (or antiparallel) bearings are
@@ -81,41 +82,6 @@ const REFINE_CONVERGED: f64 = 1e-14;
 /// Largest residual of the normalised distance equations accepted in a solution; larger
 /// ones would make the recovered rotation measurably non-orthonormal.
 const MAX_RESIDUAL: f64 = 1e-9;
-
-/// A symmetric 3×3 matrix, stored as its upper triangle.
-#[derive(Clone, Copy, Debug)]
-struct Sym3 {
-    xx: f64,
-    xy: f64,
-    xz: f64,
-    yy: f64,
-    yz: f64,
-    zz: f64,
-}
-
-impl Sym3 {
-    /// The adjugate (transposed cofactor matrix), symmetric for a symmetric matrix.
-    #[inline(always)]
-    fn adj(&self) -> Self {
-        Self {
-            xx: self.yy * self.zz - self.yz * self.yz,
-            xy: self.xz * self.yz - self.xy * self.zz,
-            xz: self.xy * self.yz - self.xz * self.yy,
-            yy: self.xx * self.zz - self.xz * self.xz,
-            yz: self.xy * self.xz - self.xx * self.yz,
-            zz: self.xx * self.yy - self.xy * self.xy,
-        }
-    }
-
-    /// Frobenius inner product `Σᵢⱼ AᵢⱼBᵢⱼ`.
-    #[inline(always)]
-    fn inner(&self, o: &Self) -> f64 {
-        self.xx * o.xx
-            + self.yy * o.yy
-            + self.zz * o.zz
-            + 2.0 * (self.xy * o.xy + self.xz * o.xz + self.yz * o.yz)
-    }
-}
 
 /// `x > 0`, false for NaN: the guard form used before every square root and division.
 #[inline(always)]

@@ -70,6 +70,11 @@ pub enum TrilaterationError {
 /// [`TrilaterationError`] for non-finite input, negative ranges, coincident or collinear
 /// centres, and spheres that do not meet.
 ///
+/// # Role in vgps
+/// A step of the proposal's method ([`crate::solvers::p3p_cosines`] gives the ranges,
+/// trilateration the position), kept as the **reference**: production positions come from
+/// [`crate::solvers::p3p`] and [`crate::solvers::refine_pose`].
+///
 /// # Example
 /// ```
 /// use nalgebra::Vector3;

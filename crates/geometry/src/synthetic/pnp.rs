@@ -29,6 +29,7 @@
 use super::{perturb_bearing, random_pose, random_unit_vector};
 use crate::geometry::{Pose, Ray, try_unit};
 use nalgebra::{Matrix6, Rotation3, Translation3, Vector3, Vector6};
+use rand::seq::SliceRandom;
 use rand::{Rng, RngExt};
 
 /// Distance of each Ladybug-like camera centre from the rig origin (metres). A Ladybug2 head
@@ -237,15 +238,11 @@ impl PnpProblem {
         }
         let points_in_world = points_in_world.into_iter().map(|p| p.coords).collect();
 
-        // Exactly round(f·n) outliers at distinct random indices (partial Fisher–Yates).
+        // Exactly round(f·n) outliers at distinct random indices.
         let n_outliers = (config.outlier_fraction * n as f64).round() as usize;
         let mut order: Vec<usize> = (0..n).collect();
-        for k in 0..n_outliers.min(n) {
-            let j = rng.random_range(k..n);
-            order.swap(k, j);
-        }
         let mut inliers = vec![true; n];
-        for &i in &order[..n_outliers.min(n)] {
+        for &i in order.partial_shuffle(rng, n_outliers.min(n)).0.iter() {
             inliers[i] = false;
         }
         let rays_in_rig = true_rays_in_rig

@@ -34,8 +34,9 @@ mod tables;
 
 pub use nmea::{GnssFix, GnssRecord, NmeaStats};
 pub use tables::{
-    Detection, Frame, MAX_IMAGE_COLUMNS, QUATERNION_NORM_TOLERANCE, TruthRecord, detections_to_csv,
-    frames_from_text, frames_to_csv, landmarks_to_csv, truth_from_text, truth_to_csv,
+    FrameRecord, MAX_IMAGE_COLUMNS, PixelDetection, QUATERNION_NORM_TOLERANCE, TruthRecord,
+    detections_to_csv, frames_from_text, frames_to_csv, landmarks_to_csv, truth_from_text,
+    truth_to_csv,
 };
 
 use std::collections::BTreeMap;
@@ -271,8 +272,8 @@ pub struct Drive {
     manifest: Manifest,
     rig: Rig,
     landmarks: Vec<Landmark>,
-    frames: Vec<Frame>,
-    detections: Vec<Detection>,
+    frames: Vec<FrameRecord>,
+    detections: Vec<PixelDetection>,
     ranges: BTreeMap<u64, (usize, usize)>,
     bad_rows: BTreeMap<u64, Vec<String>>,
     orphans: Vec<String>,
@@ -368,7 +369,7 @@ impl Drive {
     }
 
     fn index_detections(&mut self, rows: Vec<DetectionRow>) {
-        let mut good: Vec<Detection> = Vec::with_capacity(rows.len());
+        let mut good: Vec<PixelDetection> = Vec::with_capacity(rows.len());
         for row in rows {
             match row {
                 DetectionRow::Ok(d) if self.frame_index(d.frame).is_some() => good.push(d),
@@ -434,17 +435,17 @@ impl Drive {
     }
 
     /// The frames, in increasing frame number.
-    pub fn frames(&self) -> &[Frame] {
+    pub fn frames(&self) -> &[FrameRecord] {
         &self.frames
     }
 
     /// Every valid detection, grouped by frame (file order within a frame).
-    pub fn all_detections(&self) -> &[Detection] {
+    pub fn all_detections(&self) -> &[PixelDetection] {
         &self.detections
     }
 
     /// The valid detections of one frame (empty for a frame without any).
-    pub fn detections(&self, frame: u64) -> &[Detection] {
+    pub fn detections(&self, frame: u64) -> &[PixelDetection] {
         self.ranges
             .get(&frame)
             .map_or(&[], |&(a, b)| &self.detections[a..b])

@@ -17,7 +17,7 @@ const IMAGE_COLUMNS: [&str; MAX_IMAGE_COLUMNS] = [
 
 /// One frame of the drive.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Frame {
+pub struct FrameRecord {
     /// Frame number (unique, increasing in the file).
     pub frame: u64,
     /// Unix time of the exposure, seconds (UTC).
@@ -27,7 +27,7 @@ pub struct Frame {
     pub images: Vec<Option<String>>,
 }
 
-pub use vgps_camera::imaging::Detection;
+pub use vgps_camera::imaging::PixelDetection;
 
 /// The true pose of the rig at one frame (simulations).
 ///
@@ -55,7 +55,7 @@ fn unsigned(row: &Row<'_>, column: &str) -> Result<u64, InputError> {
 /// # Errors
 /// [`InputError`] naming file, line and field: bad header, non-integer frame, non-finite
 /// time, duplicate or decreasing frame numbers, both `image` and `image_k` columns.
-pub fn frames_from_text(path: &Path, text: &str) -> Result<Vec<Frame>, InputError> {
+pub fn frames_from_text(path: &Path, text: &str) -> Result<Vec<FrameRecord>, InputError> {
     let mut allowed = vec!["frame", "time_s", "image"];
     allowed.extend_from_slice(&IMAGE_COLUMNS);
     let expected = "frame,time_s[,image_0,…,image_5 | ,image]";
@@ -70,7 +70,7 @@ pub fn frames_from_text(path: &Path, text: &str) -> Result<Vec<Frame>, InputErro
         let last = IMAGE_COLUMNS.iter().rposition(|c| table.has(c));
         last.map_or(Vec::new(), |k| IMAGE_COLUMNS[..=k].to_vec())
     };
-    let mut frames: Vec<Frame> = Vec::new();
+    let mut frames: Vec<FrameRecord> = Vec::new();
     for row in table.rows() {
         let row = row?;
         let frame = unsigned(&row, "frame")?;
@@ -90,7 +90,7 @@ pub fn frames_from_text(path: &Path, text: &str) -> Result<Vec<Frame>, InputErro
             .iter()
             .map(|c| row.optional_str(c).map(str::to_string))
             .collect();
-        frames.push(Frame {
+        frames.push(FrameRecord {
             frame,
             time_s,
             images,
@@ -102,7 +102,7 @@ pub fn frames_from_text(path: &Path, text: &str) -> Result<Vec<Frame>, InputErro
 /// One parsed detections row, or the reason it is unusable.
 pub enum DetectionRow {
     /// A valid row.
-    Ok(Detection),
+    Ok(PixelDetection),
     /// A bad row whose frame number could be read.
     Bad {
         /// The row's frame number.
@@ -149,7 +149,7 @@ pub fn detections_from_text(
                 continue;
             }
         };
-        let parsed = (|| -> Result<Detection, InputError> {
+        let parsed = (|| -> Result<PixelDetection, InputError> {
             let camera = unsigned(&row, "camera")?;
             let camera = usize::try_from(camera)
                 .ok()
@@ -161,7 +161,7 @@ pub fn detections_from_text(
                     )
                 })?;
             let strength = row.optional_f64("strength")?;
-            Ok(Detection {
+            Ok(PixelDetection {
                 frame,
                 camera,
                 u: row.required_f64("u")?,
@@ -190,7 +190,7 @@ pub fn detections_from_text(
 pub fn truth_from_text(
     path: &Path,
     text: &str,
-    frames: &[Frame],
+    frames: &[FrameRecord],
 ) -> Result<Vec<TruthRecord>, InputError> {
     let cols = ["frame", "lat", "lon", "alt", "qw", "qx", "qy", "qz"];
     let expected = "frame,lat,lon,alt,qw,qx,qy,qz";
@@ -246,7 +246,7 @@ fn opt_f64(x: Option<f64>) -> String {
 }
 
 /// CSV text of frames (`frame,time_s` and the image columns the frames use).
-pub fn frames_to_csv(frames: &[Frame]) -> String {
+pub fn frames_to_csv(frames: &[FrameRecord]) -> String {
     let n = frames.iter().map(|f| f.images.len()).max().unwrap_or(0);
     let mut out = String::from("frame,time_s");
     if n == 1 {
@@ -271,7 +271,7 @@ pub fn frames_to_csv(frames: &[Frame]) -> String {
 }
 
 /// CSV text of detections (`frame,camera,u,v,strength,class`).
-pub fn detections_to_csv(detections: &[Detection]) -> String {
+pub fn detections_to_csv(detections: &[PixelDetection]) -> String {
     let mut out = String::from("frame,camera,u,v,strength,class\n");
     for d in detections {
         let _ = writeln!(

@@ -47,17 +47,16 @@ fn plot_error(what: &'static str) -> impl Fn(String) -> ReportError {
 }
 
 fn encode_png(buf: &[u8], what: &'static str) -> Result<Vec<u8>, ReportError> {
+    use image::ImageEncoder;
     let mut out = Vec::new();
-    {
-        let mut enc = png::Encoder::new(&mut out, PLOT_WIDTH_PX, PLOT_HEIGHT_PX);
-        enc.set_color(png::ColorType::Rgb);
-        enc.set_depth(png::BitDepth::Eight);
-        let mut w = enc
-            .write_header()
-            .map_err(|e| plot_error(what)(e.to_string()))?;
-        w.write_image_data(buf)
-            .map_err(|e| plot_error(what)(e.to_string()))?;
-    }
+    image::codecs::png::PngEncoder::new(&mut out)
+        .write_image(
+            buf,
+            PLOT_WIDTH_PX,
+            PLOT_HEIGHT_PX,
+            image::ExtendedColorType::Rgb8,
+        )
+        .map_err(|e| plot_error(what)(e.to_string()))?;
     Ok(out)
 }
 

@@ -21,7 +21,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use vgps_camera::imaging::encode_png;
-use vgps_replay::drive::{DriveError, Frame, MAX_IMAGE_COLUMNS, frames_to_csv, write_text};
+use vgps_replay::drive::{DriveError, FrameRecord, MAX_IMAGE_COLUMNS, frames_to_csv, write_text};
 
 /// The image directory inside a drive.
 pub const IMAGES_DIR: &str = "images";
@@ -93,10 +93,7 @@ pub fn image_name(frame: u64, camera: usize) -> String {
 pub fn image_seed(seed: u64, frame: u64, camera: usize) -> u64 {
     let mut z = seed ^ IMAGE_SEED_SALT;
     for x in [frame, camera as u64] {
-        z = (z ^ x).wrapping_add(0x9E37_79B9_7F4A_7C15);
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
+        z = crate::render::splitmix64(z ^ x);
     }
     z
 }
@@ -283,10 +280,10 @@ pub fn write_images(
         total.clutter += s.clutter;
     }
     write_text(&dir.join(IMAGES_TRUTH_NAME), &truth)?;
-    let frames: Vec<Frame> = drive
+    let frames: Vec<FrameRecord> = drive
         .frames
         .iter()
-        .map(|f| Frame {
+        .map(|f| FrameRecord {
             frame: f.frame,
             time_s: f.time_s,
             images: (0..cameras).map(|k| Some(image_name(f.frame, k))).collect(),

@@ -50,8 +50,8 @@ use vgps_geometry::geometry::Pose;
 use vgps_io::Landmark;
 use vgps_replay::drive::nmea::{GnssFix, GnssRecord, write_nmea};
 use vgps_replay::drive::{
-    Detection, DriveError, Frame, Manifest, TruthRecord, detections_to_csv, frames_to_csv,
-    landmarks_to_csv, truth_to_csv, write_manifest, write_text,
+    DriveError, FrameRecord, Manifest, PixelDetection, TruthRecord, detections_to_csv,
+    frames_to_csv, landmarks_to_csv, truth_to_csv, write_manifest, write_text,
 };
 
 /// The bundled default calibration (the Ladybug2 rig of `calibration/ladybug2.json`).
@@ -293,7 +293,7 @@ pub fn default_rig() -> Result<Rig, LoadError> {
 #[derive(Clone, Debug, PartialEq)]
 pub struct SimDetection {
     /// The detection as written to `detections.csv`.
-    pub detection: Detection,
+    pub detection: PixelDetection,
     /// Where it comes from.
     pub source: Source,
     /// The noise-free pixel.
@@ -590,7 +590,7 @@ pub fn simulate(sc: &Scenario) -> Result<SimulatedDrive, SimulateError> {
                 return;
             }
             detections.push(SimDetection {
-                detection: Detection {
+                detection: PixelDetection {
                     frame,
                     camera: v.camera,
                     u: quantize(pixel.x, PIXEL_QUANTUM),
@@ -833,17 +833,17 @@ impl SimulatedDrive {
             .surveyed_landmarks()
             .map_err(|e| werr(&landmarks_path, &e))?;
         write_text(&landmarks_path, &landmarks_to_csv(&landmarks))?;
-        let frames: Vec<Frame> = self
+        let frames: Vec<FrameRecord> = self
             .frames
             .iter()
-            .map(|f| Frame {
+            .map(|f| FrameRecord {
                 frame: f.frame,
                 time_s: f.time_s,
                 images: Vec::new(),
             })
             .collect();
         write_text(&dir.join(&manifest.frames), &frames_to_csv(&frames))?;
-        let detections: Vec<Detection> = self
+        let detections: Vec<PixelDetection> = self
             .frames
             .iter()
             .flat_map(|f| f.detections.iter().map(|d| d.detection.clone()))
