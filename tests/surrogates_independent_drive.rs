@@ -25,12 +25,19 @@ fn check(name: &str, spec: DriveSpec) {
         o.carried_m
     );
     // The stretch really has no surveyed landmark in range over ≥ 120 m.
-    assert!(o.unsurveyed_run_m >= 120.0, "{name}: {}", o.unsurveyed_run_m);
+    assert!(
+        o.unsurveyed_run_m >= 120.0,
+        "{name}: {}",
+        o.unsurveyed_run_m
+    );
     assert!(o.availability() >= 0.99, "{name}: {}", o.availability());
     assert!(fixed * 100 >= stretch * 99, "{name}: {fixed}/{stretch}");
     assert!(o.carried_m >= 120.0, "{name}: carried {} m", o.carried_m);
     assert!(o.cep(0.95) <= 0.25, "{name}: CEP95 {}", o.cep(0.95));
-    assert!(o.errors_m.last().copied().unwrap_or(f64::INFINITY) < 1.0, "{name}");
+    assert!(
+        o.errors_m.last().copied().unwrap_or(f64::INFINITY) < 1.0,
+        "{name}"
+    );
 }
 
 #[test]

@@ -169,6 +169,11 @@ def main():
         v = vgps[scene]
         rows.append((scene, "vgps estimate_absolute_pose", v["ransac_ms"], nan_inf(v["ransac_err_m"])))
         rows.append((scene, "vgps compute_fix", v["fix_ms"], nan_inf(v["fix_err_m"])))
+        rows.append((scene, "ML on true inliers (ref.)", [math.nan] * len(v["ml_err_m"]),
+                     nan_inf(v["ml_err_m"])))
+        diff = v["fix_inliers_differing"]
+        print(f"{scene}: compute_fix inlier sets differ from the truth by {sum(diff)} "
+              f"observations over {len(diff)} problems", file=sys.stderr)
     try:
         import poselib
 

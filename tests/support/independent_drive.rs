@@ -14,9 +14,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal, Poisson};
 use std::path::Path;
 use std::sync::Arc;
-use vgps::calibration::{
-    Camera, CameraModel, Equirectangular, EquirectangularParams, Pixel, Rig,
-};
+use vgps::calibration::{Camera, CameraModel, Equirectangular, EquirectangularParams, Pixel, Rig};
 use vgps::geo::{Geodetic, LocalFrame};
 use vgps::geometry::Pose;
 use vgps::io::Landmark;
@@ -365,9 +363,9 @@ pub fn generate(spec: &DriveSpec) -> Drive {
             }
         }
         let n_false = (0..detections.len())
-                .map(|_| false_count.sample(&mut rng) as usize)
-                .sum::<usize>()
-                .min(60);
+            .map(|_| false_count.sample(&mut rng) as usize)
+            .sum::<usize>()
+            .min(60);
         for _ in 0..n_false {
             let az = rng.random_range(0.0..2.0 * std::f64::consts::PI);
             let el = rng.random_range(-0.1f64..0.8);
@@ -428,7 +426,8 @@ fn best_pixel(rig: &Rig, seen: &[vgps::calibration::RigPixel]) -> Option<(usize,
         .filter_map(|p| {
             let cam = rig.camera(p.camera).ok()?;
             let (w, h) = cam.model.image_size();
-            let off = (p.pixel.x / f64::from(w) - 0.5).powi(2) + (p.pixel.y / f64::from(h) - 0.5).powi(2);
+            let off =
+                (p.pixel.x / f64::from(w) - 0.5).powi(2) + (p.pixel.y / f64::from(h) - 0.5).powi(2);
             Some((off, p.camera, p.pixel))
         })
         .min_by(|a, b| a.0.total_cmp(&b.0))

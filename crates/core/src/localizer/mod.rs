@@ -1070,7 +1070,11 @@ fn associations_unambiguous(
                 continue;
             }
             let mine = *a == Some(ci);
-            let theirs = t.assignment.iter().enumerate().any(|(k, b)| k != oi && *b == Some(ci));
+            let theirs = t
+                .assignment
+                .iter()
+                .enumerate()
+                .any(|(k, b)| k != oi && *b == Some(ci));
             // Only pairs that involve an association matter: an associated observation near
             // another landmark, or another observation near an associated landmark.
             if mine || !(a.is_some() || theirs) {
