@@ -17,7 +17,8 @@
 //!    beyond [`track::OUTLIER_SIGMAS`] are dropped, and association and refinement are
 //!    repeated from the refined pose. A tracked pose farther than
 //!    [`INNOVATION_GATE_SIGMAS`] from the prediction, or resting on fewer than three surveyed
-//!    landmarks and fewer than [`MIN_SURROGATE_FIX_ASSOCIATIONS`] associations, is not a fix.
+//!    landmarks and fewer than [`MIN_SURROGATE_FIX_ASSOCIATIONS`] associations (or
+//!    [`MIN_UNAMBIGUOUS_SURROGATE_FIX_ASSOCIATIONS`] unambiguous ones), is not a fix.
 //! 2. **Re-acquisition.** Without a usable prediction (start, gap, tracking failure), the
 //!    matcher ([`crate::matcher::match_detections`]) identifies the landmarks around a prior:
 //!    the prediction (its radius growing with the gap), else the satellite GPS position of
