@@ -327,7 +327,7 @@ pub fn generate(spec: &DriveSpec) -> Drive {
     let mut yaw_wobble = 0.0f64;
     while s <= length + 50.0 {
         let (p, heading) = path_at(spec, s);
-        let grade = (ground_at(spec, s + 0.5) - ground_at(spec, s - 0.5)) / 1.0;
+        let grade = ground_at(spec, s + 0.5) - ground_at(spec, s - 0.5);
         let speed = spec.speed_m_s * (1.0 + 0.15 * (2.0 * std::f64::consts::PI * t / 40.0).sin());
         // Body motion: pitch with the grade, roll in the turns and a little sway.
         let (_, h_next) = path_at(spec, s + 1.0);

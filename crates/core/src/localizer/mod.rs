@@ -1049,7 +1049,7 @@ fn associations_unambiguous(
         let origin = pose * nalgebra::Point3::from(o.ray.origin);
         let to = cand.position - origin.coords;
         let range = to.norm();
-        if !(range > 0.0) {
+        if range.is_nan() || range <= 0.0 {
             return None;
         }
         let observed = pose.rotation * o.ray.direction;
