@@ -93,6 +93,23 @@ struct Problem {
     truth: Pose,
     rays: Vec<Ray>,
     points: Vec<Vector3<f64>>,
+    /// The true inliers.
+    inliers: Vec<bool>,
+}
+
+/// The maximum-likelihood pose on the true inliers (angular least squares, started at the
+/// truth): the reference an estimator that finds the inliers cannot beat on average.
+fn ml_on_true_inliers(p: &Problem, sigma_rad: f64) -> Option<Pose> {
+    let idx: Vec<usize> = (0..p.rays.len()).filter(|&i| p.inliers[i]).collect();
+    let rays: Vec<Ray> = idx.iter().map(|&i| p.rays[i]).collect();
+    let points: Vec<Vector3<f64>> = idx.iter().map(|&i| p.points[i]).collect();
+    let options = vgps::solvers::RefineOptions {
+        sigma_rad,
+        ..Default::default()
+    };
+    vgps::solvers::refine_pose(&p.truth, &rays, &points, &options)
+        .ok()
+        .map(|r| r.world_from_rig)
 }
 
 fn parse_problem(p: &Value) -> Problem {
@@ -112,10 +129,12 @@ fn parse_problem(p: &Value) -> Problem {
         .iter()
         .map(parse_v3)
         .collect();
+    let inliers: Vec<bool> = serde_json::from_value(p["inliers"].clone()).expect("inliers");
     Problem {
         truth,
         rays,
         points,
+        inliers,
     }
 }
 
@@ -146,7 +165,12 @@ fn solve(file: &str) {
         let zeros = vec![0.0; problems.first().map_or(0, |p| p.rays.len())];
         let (mut ransac_ms, mut ransac_err, mut iterations) = (vec![], vec![], vec![]);
         let (mut fix_ms, mut fix_err, mut fix_ok) = (vec![], vec![], vec![]);
+        let (mut ml_err, mut fix_wrong_inliers) = (vec![], vec![]);
         for p in &problems {
+            ml_err.push(
+                ml_on_true_inliers(p, sigma_rad)
+                    .map_or(f64::INFINITY, |m| synthetic::pose_error(&m, &p.truth).0),
+            );
             let start = Instant::now();
             let result = estimate_absolute_pose(&p.rays, &p.points, &ransac_options);
             ransac_ms.push(start.elapsed().as_secs_f64() * 1e3);
@@ -163,6 +187,13 @@ fn solve(file: &str) {
             let start = Instant::now();
             let fix = compute_fix(&p.rays, &p.points, &zeros[..p.rays.len()], &fix_options);
             fix_ms.push(start.elapsed().as_secs_f64() * 1e3);
+            fix_wrong_inliers.push(fix.as_ref().map_or(0, |f| {
+                f.inliers
+                    .iter()
+                    .zip(&p.inliers)
+                    .filter(|(a, b)| a != b)
+                    .count()
+            }));
             let estimate = fix
                 .ok()
                 .filter(|f| f.status == FixStatus::Ok)
@@ -187,6 +218,8 @@ fn solve(file: &str) {
                 "fix_ms": fix_ms,
                 "fix_err_m": finite(fix_err),
                 "fix_ok": fix_ok,
+                "fix_inliers_differing": fix_wrong_inliers,
+                "ml_err_m": finite(ml_err),
             }),
         );
     }

@@ -17,7 +17,8 @@
 //!    beyond [`track::OUTLIER_SIGMAS`] are dropped, and association and refinement are
 //!    repeated from the refined pose. A tracked pose farther than
 //!    [`INNOVATION_GATE_SIGMAS`] from the prediction, or resting on fewer than three surveyed
-//!    landmarks and fewer than [`MIN_SURROGATE_FIX_ASSOCIATIONS`] associations, is not a fix.
+//!    landmarks and fewer than [`MIN_SURROGATE_FIX_ASSOCIATIONS`] associations (or
+//!    [`MIN_UNAMBIGUOUS_SURROGATE_FIX_ASSOCIATIONS`] unambiguous ones), is not a fix.
 //! 2. **Re-acquisition.** Without a usable prediction (start, gap, tracking failure), the
 //!    matcher ([`crate::matcher::match_detections`]) identifies the landmarks around a prior:
 //!    the prediction (its radius growing with the gap), else the satellite GPS position of
@@ -113,6 +114,17 @@ pub const INNOVATION_GATE_SIGMAS: f64 = 4.0;
 /// reference drives, every such fix with fewer than 8 associations was metres off, while
 /// right fixes there use 15–30).
 pub const MIN_SURROGATE_FIX_ASSOCIATIONS: usize = 8;
+/// Fewest associations of a fix that uses fewer than [`crate::fix::MIN_OBSERVATIONS`]
+/// surveyed landmarks when its associations are unambiguous at the fix (no second landmark
+/// within [`UNAMBIGUOUS_GATE_SIGMAS`] of an associated observation, no second observation
+/// near an associated landmark). Five bearings leave 4 degrees of freedom for the χ² test.
+/// With landmarks every 25–40 m and a 40–50 m detection range, 8–12 landmarks are in view,
+/// and [`MIN_SURROGATE_FIX_ASSOCIATIONS`] alone lost the fix on every drive built
+/// differently from the simulator's (issue #25).
+pub const MIN_UNAMBIGUOUS_SURROGATE_FIX_ASSOCIATIONS: usize = 5;
+/// The gate (σ of the normalised angular residual at the fix, pose uncertainty included) of
+/// the unambiguity test.
+pub const UNAMBIGUOUS_GATE_SIGMAS: f64 = 8.0;
 /// Default radius of a re-acquisition prior beyond the predicted position's 3σ (metres).
 pub const DEFAULT_REACQUIRE_MARGIN_M: f64 = 5.0;
 /// Default shortest interval between two cold starts (seconds of drive time): a cold start
@@ -564,7 +576,7 @@ impl Localizer {
                 MIN_TRACKED_CORRESPONDENCES,
             )
             .filter(|t| t.mean_chi2 <= MAX_MEAN_CHI2)
-            .filter(|t| redundant_enough(t, &candidates))
+            .filter(|t| redundant_enough(t, &candidates, &observations))
             .filter(|t| consistent_with_prediction(&pose, &guess, t, &candidates, &observations))
             .map(|t| (t, candidates, FixSource::Tracking));
         }
@@ -876,7 +888,7 @@ impl Localizer {
             MIN_TRACKED_CORRESPONDENCES,
         )
         .filter(|t| t.mean_chi2 <= MAX_MEAN_CHI2)
-        .filter(|t| redundant_enough(t, &candidates))
+        .filter(|t| redundant_enough(t, &candidates, &observations))
         .ok_or((
             LocalizerStatus::NoFix,
             "the matcher's pose did not track".to_string(),
@@ -991,8 +1003,14 @@ fn consistent_with_prediction(
 }
 
 /// True when `t` uses at least [`crate::fix::MIN_OBSERVATIONS`] surveyed landmarks, or at
-/// least [`MIN_SURROGATE_FIX_ASSOCIATIONS`] associations in all.
-fn redundant_enough(t: &track::TrackResult, candidates: &[Candidate]) -> bool {
+/// least [`MIN_SURROGATE_FIX_ASSOCIATIONS`] associations in all, or at least
+/// [`MIN_UNAMBIGUOUS_SURROGATE_FIX_ASSOCIATIONS`] associations that are unambiguous at the
+/// fix (see [`associations_unambiguous`]).
+fn redundant_enough(
+    t: &track::TrackResult,
+    candidates: &[Candidate],
+    observations: &[ObsRay],
+) -> bool {
     let mut surveyed = 0;
     let mut all = 0;
     for &ci in t.assignment.iter().flatten() {
@@ -1004,7 +1022,71 @@ fn redundant_enough(t: &track::TrackResult, candidates: &[Candidate]) -> bool {
             surveyed += 1;
         }
     }
-    surveyed >= crate::fix::MIN_OBSERVATIONS || all >= MIN_SURROGATE_FIX_ASSOCIATIONS
+    surveyed >= crate::fix::MIN_OBSERVATIONS
+        || all >= MIN_SURROGATE_FIX_ASSOCIATIONS
+        || (all >= MIN_UNAMBIGUOUS_SURROGATE_FIX_ASSOCIATIONS
+            && associations_unambiguous(t, candidates, observations))
+}
+
+/// True when, at the fix `t`, every associated observation has its own landmark as the only
+/// candidate within [`UNAMBIGUOUS_GATE_SIGMAS`] of it, and no other observation of the frame
+/// comes that close to an associated landmark: no other association set fits the pose as
+/// well, so the handful of associations cannot be a wrong set (the failure the
+/// [`MIN_SURROGATE_FIX_ASSOCIATIONS`] rule guards against: a wrong set is one in which an
+/// observation was given a neighbouring landmark, which this test sees as a second
+/// candidate in the gate).
+fn associations_unambiguous(
+    t: &track::TrackResult,
+    candidates: &[Candidate],
+    observations: &[ObsRay],
+) -> bool {
+    let pose = &t.world_from_rig;
+    let c = &t.covariance;
+    let pose_pos2 = (c[(0, 0)] + c[(1, 1)] + c[(2, 2)]).max(0.0);
+    let pose_rot2 = (c[(3, 3)] + c[(4, 4)] + c[(5, 5)]).max(0.0);
+    // Normalised residual of observation `o` against candidate `cand`, squared.
+    let chi2 = |o: &ObsRay, cand: &Candidate| -> Option<f64> {
+        let origin = pose * nalgebra::Point3::from(o.ray.origin);
+        let to = cand.position - origin.coords;
+        let range = to.norm();
+        if range.is_nan() || range <= 0.0 {
+            return None;
+        }
+        let observed = pose.rotation * o.ray.direction;
+        let cos = observed.dot(&to) / range;
+        if cos <= 0.0 {
+            return None;
+        }
+        let sin2 = (observed.cross(&to) / range).norm_squared();
+        let var = o.sigma_rad * o.sigma_rad
+            + (cand.sigma_m * cand.sigma_m + pose_pos2) / (range * range)
+            + pose_rot2;
+        Some(sin2 / var)
+    };
+    let gate2 = UNAMBIGUOUS_GATE_SIGMAS * UNAMBIGUOUS_GATE_SIGMAS;
+    let classes = |a: Option<u32>, b: Option<u32>| a.is_none() || b.is_none() || a == b;
+    for (oi, (o, a)) in observations.iter().zip(&t.assignment).enumerate() {
+        for (ci, cand) in candidates.iter().enumerate() {
+            if !classes(o.class, cand.class) {
+                continue;
+            }
+            let mine = *a == Some(ci);
+            let theirs = t
+                .assignment
+                .iter()
+                .enumerate()
+                .any(|(k, b)| k != oi && *b == Some(ci));
+            // Only pairs that involve an association matter: an associated observation near
+            // another landmark, or another observation near an associated landmark.
+            if mine || !(a.is_some() || theirs) {
+                continue;
+            }
+            if chi2(o, cand).is_some_and(|m| m <= gate2) {
+                return false;
+            }
+        }
+    }
+    true
 }
 
 /// Adds to a fix's position covariance the error it shares with its surrogates.
