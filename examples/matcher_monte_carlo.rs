@@ -13,8 +13,8 @@ use std::time::Instant;
 use vgps::geometry::Ray;
 use vgps::matcher::{Detection, MatchOptions, MatchStatus, match_detections};
 use vgps::synthetic::matcher::{CityConfig, CityWorld, FrameConfig};
-use vgps::synthetic::scatter::{ScatterConfig, ScatterWorld};
 use vgps::synthetic::rng;
+use vgps::synthetic::scatter::{ScatterConfig, ScatterWorld};
 
 /// A wrong fix is a fix this far from the truth, metres.
 const WRONG_FIX_M: f64 = 5.0;

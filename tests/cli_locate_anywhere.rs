@@ -135,7 +135,11 @@ fn frames_on_three_continents_in_one_file_are_each_solved() {
         assert!(error < 0.2, "frame {place}: {error} m");
     }
     // Landmarks of Zurich and Sydney in one frame: the ids are wrong, and it says so.
-    assert_eq!(lines[3]["status"], "landmarks_too_far_apart", "{}", lines[3]);
+    assert_eq!(
+        lines[3]["status"], "landmarks_too_far_apart",
+        "{}",
+        lines[3]
+    );
     let message = lines[3]["message"].as_str().unwrap();
     assert!(message.contains("km apart"), "{message}");
     assert!(lines[3]["lat"].is_null());
@@ -157,7 +161,10 @@ fn a_prior_far_from_a_frames_landmarks_is_a_status_of_that_frame() {
     for line in &lines[1..3] {
         assert_eq!(line["status"], "no_solution", "{line}");
         let message = line["message"].as_str().unwrap();
-        assert!(message.contains("km from the nearest landmark"), "{message}");
+        assert!(
+            message.contains("km from the nearest landmark"),
+            "{message}"
+        );
         assert!(line["lat"].is_null());
     }
 }

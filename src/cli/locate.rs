@@ -267,7 +267,13 @@ pub fn locate(
             ));
             continue;
         };
-        reports.push(identified_report(number, &rows, &identified, prior, sigma_rad)?);
+        reports.push(identified_report(
+            number,
+            &rows,
+            &identified,
+            prior,
+            sigma_rad,
+        )?);
     }
     Ok(reports)
 }

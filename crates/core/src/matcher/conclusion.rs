@@ -4,8 +4,9 @@
 use super::scoring::{RefinedHypothesis, same_pose};
 use super::search::Search;
 use super::{
-    DECISIVE_LOG_ODDS, HYPOTHESIS_THRESHOLD_FACTOR, LIKELY_WRONG_LINK_PROBABILITY, MAX_REFINED_HYPOTHESES,
-    MIN_DETECTION_PROBABILITY, MIN_LINK_LEVERAGE_GAP, MatchEstimate, MatchResult, MatchStatus,
+    DECISIVE_LOG_ODDS, HYPOTHESIS_THRESHOLD_FACTOR, LIKELY_WRONG_LINK_PROBABILITY,
+    MAX_REFINED_HYPOTHESES, MIN_DETECTION_PROBABILITY, MIN_LINK_LEVERAGE_GAP, MatchEstimate,
+    MatchResult, MatchStatus,
 };
 use nalgebra::{Matrix2, Vector3};
 use vgps_geometry::geometry::Pose;

@@ -155,8 +155,7 @@ impl ScatterWorld {
         let frame = self.frame(rng, &pose, config);
         let angle = rng.random_range(-std::f64::consts::PI..=std::f64::consts::PI);
         let radius = TRIAL_PRIOR_RADIUS_M * rng.random_range(0.0..1.0f64).sqrt();
-        let centre =
-            pose.translation.vector + Vector3::new(angle.cos(), angle.sin(), 0.0) * radius;
+        let centre = pose.translation.vector + Vector3::new(angle.cos(), angle.sin(), 0.0) * radius;
         let area = SearchArea::around(&centre, TRIAL_PRIOR_RADIUS_M, TRIAL_PRIOR_HALF_HEIGHT_M)
             .unwrap_or(SearchArea {
                 min_in_world: centre,
