@@ -5,12 +5,16 @@
 //!
 //! Environment: `UP_TOL_DEG=4` (known vertical to 4°), `CELL_M`, `MIN_EXT`, `TRUE_DET`,
 //! `FALSE_DET`, `MARGIN` (ambiguity margin), `SPARSE=1` (the 1,060-landmark city with a prior), `VERBOSE=1`,
-//! `FROM=N` (generate frames 0..N but match only from frame N on: reproduces frame N alone).
+//! `FROM=N` (generate frames 0..N but match only from frame N on: reproduces frame N alone),
+//! `LAYOUT=scatter` (2,000 landmarks scattered over 1 km², 3–30 m high, the 14 nearest within
+//! 80 m seen: issue #25's random layout, `vgps::synthetic::scatter`; default: the street
+//! grid), `MAX_NFA` (the acceptance test's ε; `inf` disables it).
 use std::time::Instant;
 use vgps::geometry::Ray;
 use vgps::matcher::{Detection, MatchOptions, MatchStatus, match_detections};
 use vgps::synthetic::matcher::{CityConfig, CityWorld, FrameConfig};
 use vgps::synthetic::rng;
+use vgps::synthetic::scatter::{ScatterConfig, ScatterWorld};
 
 /// A wrong fix is a fix this far from the truth, metres.
 const WRONG_FIX_M: f64 = 5.0;
@@ -29,7 +33,13 @@ fn main() {
         CityConfig::default()
     };
     let world = CityWorld::generate(&mut r, &config);
-    let db = world.landmark_db().expect("valid landmarks");
+    let scatter = (std::env::var("LAYOUT").as_deref() == Ok("scatter"))
+        .then(|| ScatterWorld::generate(&mut r, &ScatterConfig::default()));
+    let db = match &scatter {
+        Some(s) => s.landmark_db(),
+        None => world.landmark_db(),
+    }
+    .expect("valid landmarks");
     // TRUE_DET / FALSE_DET: detections of landmarks / false detections per frame.
     let env_usize = |name: &str, default: usize| {
         std::env::var(name)
@@ -61,9 +71,17 @@ fn main() {
             .ok()
             .and_then(|s| s.parse().ok())
             .unwrap_or(vgps::matcher::DEFAULT_CELL_SIZE_M),
+        max_false_alarms: std::env::var("MAX_NFA")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(MatchOptions::default().max_false_alarms),
         ..MatchOptions::default()
     };
     let (mut right, mut wrong, mut ambiguous, mut none) = (0usize, 0usize, 0usize, 0usize);
+    // Of the frames without a fix: those refused as `no_match` by the acceptance test.
+    let (mut no_match, mut refused_by_nfa) = (0usize, 0usize);
+    // The largest log10 NFA of a right fix, the smallest of a wrong one.
+    let (mut right_nfa_max, mut wrong_nfa_min) = (f64::NEG_INFINITY, f64::INFINITY);
     // Right fixes whose only wrong links are coincidences: a false detection (random
     // direction) that, under the true pose, lies within the inlier gate of a landmark, so no
     // matcher can tell it from a detection of that landmark.
@@ -84,10 +102,11 @@ fn main() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(0);
     for frame_index in 0..frames {
-        let trial = if cold {
-            world.cold_trial(&mut r, &frame_config, &db)
-        } else {
-            world.prior_trial(&mut r, &frame_config)
+        let trial = match (&scatter, cold) {
+            (Some(s), true) => s.cold_trial(&mut r, &frame_config),
+            (Some(s), false) => s.prior_trial(&mut r, &frame_config),
+            (None, true) => world.cold_trial(&mut r, &frame_config, &db),
+            (None, false) => world.prior_trial(&mut r, &frame_config),
         };
         let (pose, frame, area) = (trial.pose, trial.frame, trial.area);
         if frame_index < from {
@@ -141,7 +160,7 @@ fn main() {
                 })
                 .collect();
             println!(
-                "frame {frame_index}: links {} {} true {} best {} runner {:?} (runner-up {:?} m from the truth) cells {} hyp {} err {:?} wrong_links {} {} {:.1} ms {}",
+                "frame {frame_index}: links {} {} true {} best {} runner {:?} (runner-up {:?} m from the truth) cells {} hyp {} tests {} log10 NFA {:?} err {:?} wrong_links {} {} {:.1} ms {}",
                 result.assignment.iter().flatten().count(),
                 result.status,
                 true_count,
@@ -150,6 +169,8 @@ fn main() {
                 runner_err,
                 result.cells,
                 result.hypotheses,
+                result.pose_tests,
+                result.log10_false_alarms.map(|x| (x * 10.0).round() / 10.0),
                 err,
                 wrong_links,
                 details.join(" "),
@@ -185,10 +206,17 @@ fn main() {
                             && a.and_then(|i| residual(&pose, i, bearing))
                                 .is_some_and(|r| r <= gate)
                     });
+                let nfa = result.log10_false_alarms.unwrap_or(f64::NAN);
                 if error > WRONG_FIX_M {
                     wrong += 1;
+                    wrong_nfa_min = wrong_nfa_min.min(nfa);
+                    println!(
+                        "WRONG FIX frame {frame_index}: {error:.1} m off, {} inliers, runner-up {:?}, log10 NFA {nfa:.2}",
+                        result.best_score, result.runner_up_score
+                    );
                 } else if assignment_right {
                     right += 1;
+                    right_nfa_max = right_nfa_max.max(nfa);
                 } else if only_coincidences {
                     coincident += 1;
                 } else {
@@ -196,6 +224,12 @@ fn main() {
                 }
             }
             MatchStatus::Ambiguous => ambiguous += 1,
+            MatchStatus::NoMatch => {
+                no_match += 1;
+                if result.message.contains("by chance") {
+                    refused_by_nfa += 1;
+                }
+            }
             _ => none += 1,
         }
     }
@@ -207,12 +241,13 @@ fn main() {
     }
     let pct = |x: usize| 100.0 * x as f64 / frames as f64;
     println!(
-        "{mode}: {} landmarks, {frames} frames: right {right} ({:.2} %), right pose with a coincident false detection linked {coincident} ({:.2} %), wrong fixes {wrong} ({:.3} %), ambiguous {ambiguous} ({:.2} %), other no-fix/partly-wrong assignment {none} ({:.2} %); true detections linked in the fixes {true_links} of {true_detections} ({:.2} %); time per frame median {:.3} ms, p90 {:.3} ms, max {:.3} ms",
+        "{mode}: {} landmarks, {frames} frames: right {right} ({:.2} %), right pose with a coincident false detection linked {coincident} ({:.2} %), wrong fixes {wrong} ({:.3} %), ambiguous {ambiguous} ({:.2} %), no_match {no_match} ({:.2} %; {refused_by_nfa} by the acceptance test), other no-fix/partly-wrong assignment {none} ({:.2} %); log10 NFA: largest of a right fix {right_nfa_max:.1}, smallest of a wrong fix {wrong_nfa_min:.1}; true detections linked in the fixes {true_links} of {true_detections} ({:.2} %); time per frame median {:.3} ms, p90 {:.3} ms, max {:.3} ms",
         db.len(),
         pct(right),
         pct(coincident),
         pct(wrong),
         pct(ambiguous),
+        pct(no_match),
         pct(none),
         100.0 * true_links as f64 / true_detections.max(1) as f64,
         times[frames / 2] * 1e3,

@@ -33,6 +33,14 @@ pub const MATCH_VERTICAL_HALF_RANGE_M: f64 = 1.0;
 /// of coordinates in the wrong unit (radians for degrees) or a swapped latitude/longitude.
 pub const MAX_SEARCH_GAP_TO_LANDMARKS_M: f64 = 100_000.0;
 
+/// Status of a frame with landmark ids whose landmarks lie farther apart than
+/// [`MAX_FRAME_LANDMARK_SPREAD_M`]: one camera cannot see them all, so some ids are wrong.
+pub const STATUS_LANDMARKS_TOO_FAR_APART: &str = "landmarks_too_far_apart";
+
+/// A frame's identified landmarks farther apart than this (metres, 100 km) cannot be seen
+/// from one place: the frame gets [`STATUS_LANDMARKS_TOO_FAR_APART`].
+pub const MAX_FRAME_LANDMARK_SPREAD_M: f64 = 100_000.0;
+
 /// The result for one frame: one JSON object of the output.
 ///
 /// Numeric fields are `null` unless `status` is `ok`.
@@ -178,8 +186,9 @@ pub struct LocateInput<'a> {
 /// contiguous. Human-readable notes (e.g. about frames that need the matcher) are appended
 /// to `notes`.
 ///
-/// The local ENU frame of the computation is anchored at the prior when one is given,
-/// otherwise at the centroid (in ECEF) of all landmarks.
+/// A frame with landmark ids is solved in a local ENU frame of its own, anchored at the
+/// centroid (in ECEF) of its landmarks, so a file may hold frames anywhere on Earth; a
+/// frame without ids is matched in the local frame anchored at the prior (or region).
 ///
 /// # Errors
 /// [`CliError::Input`] naming the file, line and field for a pixel observation without a
@@ -208,22 +217,7 @@ pub fn locate(
     }
     let (resolved, rays) = resolve_observations(input, &geodetic)?;
     let search_around = prior.or(region);
-    let origin = match search_around {
-        Some(p) => Some(p.position),
-        None => centroid(geodetic.values().map(|(g, _)| g)),
-    };
-    let frame = origin.map(LocalFrame::new);
-    let fix_options = FixOptions {
-        sigma_rad,
-        prior: match (prior, &frame) {
-            (Some(p), Some(f)) => Some(Prior {
-                position_in_world: f.to_enu(&p.position),
-                radius_m: p.radius_m,
-            }),
-            _ => None,
-        },
-        ..FixOptions::default()
-    };
+    let frame = search_around.map(|p| LocalFrame::new(p.position));
 
     let mut frames: BTreeMap<u64, Vec<usize>> = BTreeMap::new();
     for (k, o) in observations.iter().enumerate() {
@@ -235,7 +229,7 @@ pub fn locate(
         let rows: Vec<&ObservationRecord> = indices.iter().map(|&k| &observations[k]).collect();
         let identified: Option<Vec<(Ray, Geodetic, f64)>> =
             indices.iter().map(|&k| resolved[k]).collect();
-        let (Some(identified), Some(local)) = (identified, frame.as_ref()) else {
+        let Some(identified) = identified else {
             if let (Some(around), Some(local)) = (search_around, frame.as_ref()) {
                 let db = match &matcher_db {
                     Some(db) => db,
@@ -273,15 +267,94 @@ pub fn locate(
             ));
             continue;
         };
-        let id_rays: Vec<Ray> = identified.iter().map(|(r, _, _)| *r).collect();
-        let points: Vec<Vector3<f64>> =
-            identified.iter().map(|(_, g, _)| local.to_enu(g)).collect();
-        let sigmas: Vec<f64> = identified.iter().map(|(_, _, s)| *s).collect();
-        let fix = compute_fix(&id_rays, &points, &sigmas, &fix_options)
-            .map_err(|e| CliError::Internal(format!("frame {number}: invalid fix problem: {e}")))?;
-        reports.push(report(number, &rows, &fix, local));
+        reports.push(identified_report(
+            number,
+            &rows,
+            &identified,
+            prior,
+            sigma_rad,
+        )?);
     }
     Ok(reports)
+}
+
+/// The fix of a frame whose rows all name their landmark, in a local frame at the centroid
+/// of those landmarks: a per-frame status when they lie too far apart to be seen from one
+/// place, or when the prior is far from all of them.
+///
+/// # Errors
+/// [`CliError::Internal`] when the fix refuses its (validated) input.
+fn identified_report(
+    number: u64,
+    rows: &[&Observation],
+    identified: &[(Ray, Geodetic, f64)],
+    prior: Option<&PriorArg>,
+    sigma_rad: f64,
+) -> Result<FrameReport, CliError> {
+    let n = rows.len();
+    let ecef: Vec<Vector3<f64>> = identified.iter().map(|(_, g, _)| g.to_ecef()).collect();
+    let spread = ecef
+        .iter()
+        .enumerate()
+        .flat_map(|(k, a)| ecef[k + 1..].iter().map(move |b| (a - b).norm()))
+        .fold(0.0, f64::max);
+    if spread > MAX_FRAME_LANDMARK_SPREAD_M {
+        return Ok(FrameReport::without_fix(
+            number,
+            STATUS_LANDMARKS_TOO_FAR_APART,
+            format!(
+                "the landmarks named by this frame's rows lie up to {:.0} km apart (at most \
+                 {:.0} km): no camera sees them all from one place; check the landmark ids",
+                spread / 1000.0,
+                MAX_FRAME_LANDMARK_SPREAD_M / 1000.0
+            ),
+            n,
+        ));
+    }
+    let Some(local) = centroid(identified.iter().map(|(_, g, _)| g)).map(LocalFrame::new) else {
+        // Only for no landmark at all (a frame has rows) or landmarks spread round the
+        // Earth, which the spread test refuses first.
+        return Ok(FrameReport::without_fix(
+            number,
+            FixStatus::NoSolution.as_str(),
+            "the frame's landmarks have no centroid to anchor a local frame at".to_string(),
+            n,
+        ));
+    };
+    let points: Vec<Vector3<f64>> = identified.iter().map(|(_, g, _)| local.to_enu(g)).collect();
+    let prior = prior.map(|p| Prior {
+        position_in_world: local.to_enu(&p.position),
+        radius_m: p.radius_m,
+    });
+    if let Some(p) = &prior {
+        let nearest = points
+            .iter()
+            .map(|q| (q - p.position_in_world).norm())
+            .fold(f64::INFINITY, f64::min);
+        if nearest > p.radius_m + MAX_FRAME_LANDMARK_SPREAD_M {
+            return Ok(FrameReport::without_fix(
+                number,
+                FixStatus::NoSolution.as_str(),
+                format!(
+                    "--prior is {:.0} km from the nearest landmark of this frame (RADIUS_M {} \
+                     m): the frame was taken elsewhere, or its landmark ids are wrong",
+                    nearest / 1000.0,
+                    p.radius_m
+                ),
+                n,
+            ));
+        }
+    }
+    let fix_options = FixOptions {
+        sigma_rad,
+        prior,
+        ..FixOptions::default()
+    };
+    let id_rays: Vec<Ray> = identified.iter().map(|(r, _, _)| *r).collect();
+    let sigmas: Vec<f64> = identified.iter().map(|(_, _, s)| *s).collect();
+    let fix = compute_fix(&id_rays, &points, &sigmas, &fix_options)
+        .map_err(|e| CliError::Internal(format!("frame {number}: invalid fix problem: {e}")))?;
+    Ok(report(number, rows, &fix, &local))
 }
 
 /// The geodetic position and σ of every landmark, by id.

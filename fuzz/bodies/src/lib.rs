@@ -711,6 +711,7 @@ pub fn matcher(data: &[u8]) {
         max_rounds: 1 + (c[5] / 4) % 4,
         // 0, 0.4995 or 0.999.
         min_link_probability: ((c[5] / 16) % 3) as f64 * 0.4995,
+        max_false_alarms: MatchOptions::default().max_false_alarms,
     };
     let Ok(result) = match_detections(&db, &detections, &area, &options) else {
         return;

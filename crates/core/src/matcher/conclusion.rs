@@ -4,8 +4,9 @@
 use super::scoring::{RefinedHypothesis, same_pose};
 use super::search::Search;
 use super::{
-    DECISIVE_LOG_ODDS, LIKELY_WRONG_LINK_PROBABILITY, MAX_REFINED_HYPOTHESES,
-    MIN_DETECTION_PROBABILITY, MIN_LINK_LEVERAGE_GAP, MatchEstimate, MatchResult, MatchStatus,
+    DECISIVE_LOG_ODDS, HYPOTHESIS_THRESHOLD_FACTOR, LIKELY_WRONG_LINK_PROBABILITY,
+    MAX_REFINED_HYPOTHESES, MIN_DETECTION_PROBABILITY, MIN_LINK_LEVERAGE_GAP, MatchEstimate,
+    MatchResult, MatchStatus,
 };
 use nalgebra::{Matrix2, Vector3};
 use vgps_geometry::geometry::Pose;
@@ -45,10 +46,12 @@ pub(super) fn conclude(search: &mut Search, cells: usize) -> MatchResult {
     let n = search.detections.len();
     let options = search.options;
     let hypotheses = search.hypotheses;
+    let pose_tests = search.pose_tests;
     let failed = |status, message: String| {
         let mut r = MatchResult::failed(status, n, message);
         r.cells = cells;
         r.hypotheses = hypotheses;
+        r.pose_tests = pose_tests;
         r
     };
     let starts: Vec<Pose> = search
@@ -94,6 +97,8 @@ pub(super) fn conclude(search: &mut Search, cells: usize) -> MatchResult {
         best_score,
         runner_up_score: runner_up.map(|r| r.0),
         runner_up_pose: runner_up.map(|r| r.2),
+        log10_false_alarms: None,
+        pose_tests: search.pose_tests,
         cells,
         hypotheses,
     };
@@ -236,6 +241,22 @@ fn settle_links(
         current.rms = fit.rms_residual_rad;
         probabilities = search.link_probabilities(&current, model);
     }
+    // The acceptance test: could a wrong pose among those tried gather this many links by
+    // chance?
+    let links = current.assignment.iter().flatten().count();
+    let false_alarms = search.log10_false_alarms(&current.pose, links, &model.near);
+    result.log10_false_alarms = Some(false_alarms);
+    if false_alarms > options.max_false_alarms.log10() {
+        return result.refused(
+            MatchStatus::NoMatch,
+            format!(
+                "the best pose explains {links} of {} detections, which a wrong pose among the {} tried would do by chance (false alarms 10^{false_alarms:.1}, at most {:e})",
+                search.detections.len(),
+                search.pose_tests,
+                options.max_false_alarms
+            ),
+        );
+    }
     let sure: Vec<Option<usize>> = current
         .assignment
         .iter()
@@ -257,6 +278,32 @@ fn settle_links(
 }
 
 impl Search<'_> {
+    /// `log10` of the number of false alarms of a pose with `links` inliers
+    /// ([`super::nfa::log10_false_alarms`]): the poses tried so far, and the chance that a
+    /// detection unrelated to the landmarks `near` (those in range of `pose`) falls within
+    /// the hypothesis gate of one of them (the gate at which a P3P pose gathers the
+    /// detections it is refined on; per landmark its σ with the survey term at its range).
+    pub(super) fn log10_false_alarms(&self, pose: &Pose, links: usize, near: &[usize]) -> f64 {
+        let position = pose.translation.vector;
+        let gate = HYPOTHESIS_THRESHOLD_FACTOR * self.options.inlier_threshold_sigmas;
+        let landmarks: Vec<(f64, f64)> = near
+            .iter()
+            .filter_map(|&k| {
+                let offset = self.db.landmarks()[k].position_in_world - position;
+                let range = offset.norm();
+                (range > 0.0).then(|| {
+                    (
+                        (offset.z / range).clamp(-1.0, 1.0).asin(),
+                        (gate * self.sigma_of(&self.db.landmarks()[k], range))
+                            .min(std::f64::consts::PI),
+                    )
+                })
+            })
+            .collect();
+        let p = super::nfa::chance_alignment_probability(&landmarks);
+        super::nfa::log10_false_alarms(self.pose_tests, self.detections.len(), links, p)
+    }
+
     /// The detection model of a fix: false detections per steradian (those the fix does not
     /// explain, at least one, spread over the sphere) and the probability that a landmark in
     /// range is detected (inliers over landmarks in range, at least

@@ -98,6 +98,7 @@ mod cells;
 mod conclusion;
 mod db;
 mod fast_math;
+pub mod nfa;
 mod pairs;
 mod scoring;
 mod scratch;
@@ -388,6 +389,11 @@ pub struct MatchOptions {
     /// landmarks in the gate (docs/matcher.md, "Integrity"). Dropped links do not count
     /// towards the fix, which is refined again without them.
     pub min_link_probability: f64,
+    /// Most expected wrong poses per frame that may pass the acceptance test (`ε` of
+    /// [`nfa`]; positive, `f64::INFINITY` disables the test): a fix whose number of false
+    /// alarms — the poses tried times the chance that a wrong one gathers as many inliers —
+    /// exceeds it is refused as `no_match` (docs/matcher-acceptance.md).
+    pub max_false_alarms: f64,
 }
 
 impl Default for MatchOptions {
@@ -407,6 +413,7 @@ impl Default for MatchOptions {
             min_extensions: DEFAULT_MIN_EXTENSIONS,
             max_rounds: DEFAULT_MAX_ROUNDS,
             min_link_probability: DEFAULT_MIN_LINK_PROBABILITY,
+            max_false_alarms: nfa::DEFAULT_MAX_FALSE_ALARMS,
         }
     }
 }
@@ -483,6 +490,12 @@ pub struct MatchResult {
     pub runner_up_score: Option<usize>,
     /// The runner-up's refined pose, for diagnostics.
     pub runner_up_pose: Option<Pose>,
+    /// `log10` of the fix's number of false alarms ([`nfa`]): the poses tried times the
+    /// chance that a wrong pose gathers as many inliers. Present when a best hypothesis
+    /// reached the acceptance test; a fix has it at most `log10(max_false_alarms)`.
+    pub log10_false_alarms: Option<f64>,
+    /// Distinct P3P poses tried inside the search area's reach (the `N` of the test).
+    pub pose_tests: usize,
     /// Search cells visited.
     pub cells: usize,
     /// P3P hypotheses scored.
@@ -507,6 +520,8 @@ impl MatchResult {
             best_score: 0,
             runner_up_score: None,
             runner_up_pose: None,
+            log10_false_alarms: None,
+            pose_tests: 0,
             cells: 0,
             hypotheses: 0,
         }

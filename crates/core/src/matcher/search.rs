@@ -71,6 +71,9 @@ pub(super) fn validate(detections: &[Detection], options: &MatchOptions) -> Resu
     if !(0.0..=1.0).contains(&options.min_link_probability) {
         return Err(MatchError::InvalidOption("min_link_probability"));
     }
+    if options.max_false_alarms.is_nan() || options.max_false_alarms <= 0.0 {
+        return Err(MatchError::InvalidOption("max_false_alarms"));
+    }
     if options.max_rounds == 0 {
         return Err(MatchError::InvalidOption("max_rounds"));
     }
@@ -129,6 +132,9 @@ pub(super) struct Search<'a> {
     pub(super) noise: f64,
     pub(super) kept: Vec<KeptHypothesis>,
     pub(super) hypotheses: usize,
+    /// Distinct P3P poses generated inside the area's reach, over every detection triple:
+    /// the number of tests of the acceptance test ([`super::nfa`]).
+    pub(super) pose_tests: usize,
     /// Scratch of [`Search::score`]: per landmark in range, its offset in the rig frame,
     /// index and range.
     pub(super) scratch_dirs: Vec<(Vector3<f64>, usize, f64)>,
@@ -536,6 +542,7 @@ impl Search<'_> {
             noise: options.inlier_threshold_sigmas * options.sigma_rad,
             kept: Vec::new(),
             hypotheses: 0,
+            pose_tests: 0,
             scratch_dirs: Vec::new(),
             scratch_best: Vec::new(),
             scratch_extensions: Vec::new(),
@@ -598,6 +605,7 @@ impl Search<'_> {
                 };
                 let triple = DetectionTriple::new(self, frame, triple, core);
                 let budget_spent = self.landmark_triples(cells, context, frame, &triple, &mut work);
+                self.pose_tests += work.solved_poses.len();
                 self.hypotheses_of(cells, frame, &triple, &work);
                 if budget_spent {
                     return conclude(self, cells.len());

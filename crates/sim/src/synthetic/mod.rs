@@ -4,7 +4,7 @@
 //! night streets.
 
 pub use vgps_camera::synthetic::{calibration, calibration_files};
-pub use vgps_core::synthetic::{mapping, matcher};
+pub use vgps_core::synthetic::{mapping, matcher, scatter};
 pub use vgps_geometry::synthetic::*;
 
 pub mod night;
