@@ -41,6 +41,7 @@ mod atomic;
 mod landmarks;
 mod observations;
 mod rays;
+pub mod gis;
 pub mod table;
 
 pub use atomic::write_atomic;
