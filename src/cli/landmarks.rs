@@ -67,7 +67,9 @@ pub struct ImportArgs {
 /// [`CliError::Input`] naming the file and the feature or line.
 pub fn run(args: &LandmarksArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<(), CliError> {
     let LandmarksCommand::Import(a) = &args.command;
-    let bad = |field: &str, reason: String| CliError::Input(vgps_io::InputError::field("command line", 1, field, reason));
+    let bad = |field: &str, reason: String| {
+        CliError::Input(vgps_io::InputError::field("command line", 1, field, reason))
+    };
     for (name, v) in [
         ("--default-lamp-height", a.default_lamp_height),
         ("--sigma", a.sigma),
@@ -80,7 +82,10 @@ pub fn run(args: &LandmarksArgs, out: &mut dyn Write, err: &mut dyn Write) -> Re
     if let Some(g) = a.ground_height
         && !g.is_finite()
     {
-        return Err(bad("--ground-height", format!("{g} is not a finite number")));
+        return Err(bad(
+            "--ground-height",
+            format!("{g} is not a finite number"),
+        ));
     }
     let options = GisOptions {
         ground_height_m: a.ground_height,

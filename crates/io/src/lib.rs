@@ -38,10 +38,10 @@
 //! ```
 
 mod atomic;
+pub mod gis;
 mod landmarks;
 mod observations;
 mod rays;
-pub mod gis;
 pub mod table;
 
 pub use atomic::write_atomic;

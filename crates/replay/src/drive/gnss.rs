@@ -205,6 +205,39 @@ impl GnssFileStats {
         }
     }
 
+    /// The counts of the UBX reader in this form (NMEA lines and UBX frames together).
+    pub fn from_ubx(stats: &super::ubx::UbxStats, records: &[GnssRecord]) -> Self {
+        let fixes = records.iter().filter(|r| r.fix.is_some()).count();
+        let mut messages = Vec::new();
+        if stats.skipped() > stats.other {
+            messages.push(format!(
+                "UBX: {} frames, {} NAV-PVT used; skipped {} bad checksum, {} truncated, {} without a valid UTC time, {} invalid",
+                stats.frames,
+                stats.nav_pvt,
+                stats.bad_checksum,
+                stats.truncated,
+                stats.untimed,
+                stats.invalid,
+            ));
+        }
+        messages.extend(stats.nmea.messages.iter().cloned());
+        messages.truncate(MAX_GNSS_MESSAGES);
+        Self {
+            entries: stats.frames + stats.bad_checksum + stats.truncated + stats.nmea.lines,
+            fixes,
+            no_fix: records.len() - fixes,
+            other_skipped: stats.untimed
+                + stats.invalid
+                + stats.bad_checksum
+                + stats.truncated
+                + stats.nmea.bad_checksum
+                + stats.nmea.truncated
+                + stats.nmea.invalid,
+            messages,
+            ..Self::new(GnssFormat::Ubx)
+        }
+    }
+
     /// The counts of the NMEA reader in this form.
     pub fn from_nmea(stats: &NmeaStats, records: &[GnssRecord]) -> Self {
         let fixes = records.iter().filter(|r| r.fix.is_some()).count();

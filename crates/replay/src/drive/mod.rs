@@ -369,9 +369,9 @@ impl Drive {
             // The truth is optional: a file that cannot be used is a warning, a broken row
             // is refused alone, and the drive is read on.
             let path = dir.join(name);
-            let read = read_text(&path).map_err(|e| e.to_string()).and_then(|text| {
-                truth_formats::read_truth(&path, &text, &drive.frames)
-            });
+            let read = read_text(&path)
+                .map_err(|e| e.to_string())
+                .and_then(|text| truth_formats::read_truth(&path, &text, &drive.frames));
             match read {
                 Ok(read) => {
                     drive.warnings.extend(read.warning(&path));

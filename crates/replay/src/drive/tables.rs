@@ -208,7 +208,11 @@ pub fn truth_from_text(
 pub(super) type TruthRows = (Vec<TruthRecord>, Vec<Result<bool, String>>);
 
 /// As [`truth_from_text`], refusing bad rows one by one; `Err` only for the header.
-pub(super) fn truth_rows(path: &Path, text: &str, frames: &[Frame]) -> Result<TruthRows, InputError> {
+pub(super) fn truth_rows(
+    path: &Path,
+    text: &str,
+    frames: &[Frame],
+) -> Result<TruthRows, InputError> {
     let (records, rows) = truth_rows_inner(path, text, frames)?;
     Ok((
         records,

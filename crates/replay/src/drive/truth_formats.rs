@@ -191,7 +191,10 @@ fn numbers(parts: &[&str], names: &[&str]) -> Result<Vec<f64>, String> {
         .zip(names)
         .map(|(p, name)| match p.trim().parse::<f64>() {
             Ok(x) if x.is_finite() => Ok(x),
-            _ => Err(format!("field `{name}`: `{}` is not a finite number", p.trim())),
+            _ => Err(format!(
+                "field `{name}`: `{}` is not a finite number",
+                p.trim()
+            )),
         })
         .collect()
 }
@@ -234,8 +237,8 @@ pub fn read_truth(path: &Path, text: &str, frames: &[Frame]) -> Result<TruthRead
         messages: Vec::new(),
     };
     if format == TruthFormat::Vgps {
-        let (records, rows) = super::tables::truth_rows(path, text, frames)
-            .map_err(|e| e.to_string())?;
+        let (records, rows) =
+            super::tables::truth_rows(path, text, frames).map_err(|e| e.to_string())?;
         read.records = records;
         for r in rows {
             match r {
@@ -303,7 +306,10 @@ fn ins_samples(path: &Path, text: &str, read: &mut TruthRead) -> Result<Vec<Samp
             }
         };
         let Ok(position) = Geodetic::try_new(v[1], v[2], v[3]) else {
-            read.refuse(format!("{file}:{}: field `lat`: position out of range", k + 1));
+            read.refuse(format!(
+                "{file}:{}: field `lat`: position out of range",
+                k + 1
+            ));
             continue;
         };
         out.push(Sample {
@@ -345,7 +351,10 @@ fn nclt_samples(path: &Path, text: &str, read: &mut TruthRead) -> Vec<Sample> {
             }
         };
         let Some(position) = nclt_local_to_geodetic(v[1], v[2], v[3]) else {
-            read.refuse(format!("{file}:{}: field `x`: too far from NCLT's origin", k + 1));
+            read.refuse(format!(
+                "{file}:{}: field `x`: too far from NCLT's origin",
+                k + 1
+            ));
             continue;
         };
         out.push(Sample {
@@ -385,7 +394,11 @@ fn tum_samples(path: &Path, text: &str, read: &mut TruthRead) -> Result<Vec<Samp
         }
         let parts: Vec<&str> = line.split_whitespace().collect();
         if parts.len() != names.len() {
-            read.refuse(format!("{file}:{}: {} fields, TUM has 8", k + 1, parts.len()));
+            read.refuse(format!(
+                "{file}:{}: {} fields, TUM has 8",
+                k + 1,
+                parts.len()
+            ));
             continue;
         }
         let v = match numbers(&parts, &names) {
@@ -533,10 +546,17 @@ mod tests {
 
     #[test]
     fn nclt_rows_are_interpolated_and_bad_rows_refused_alone() {
-        let text = "1000000000,0,0,0,0,0,0\n1000000,nan,0,0,0,0,0\n1000100000,10,0,0,0,0,0.1\n1,2,3\n";
+        let text =
+            "1000000000,0,0,0,0,0,0\n1000000,nan,0,0,0,0,0\n1000100000,10,0,0,0,0,0.1\n1,2,3\n";
         let t = read_truth(Path::new("gt.csv"), text, &frames(&[1000.05, 2000.0])).unwrap();
-        assert_eq!((t.format, t.records.len(), t.refused), (TruthFormat::Nclt, 1, 2));
-        assert_eq!(t.messages[0], "gt.csv:2: field `x`: `nan` is not a finite number");
+        assert_eq!(
+            (t.format, t.records.len(), t.refused),
+            (TruthFormat::Nclt, 1, 2)
+        );
+        assert_eq!(
+            t.messages[0],
+            "gt.csv:2: field `x`: `nan` is not a finite number"
+        );
         let (r_ns, _) = nclt_radii();
         let north = (t.records[0].position.lat_deg.to_radians() - NCLT_ORIGIN_LAT_RAD) * r_ns;
         assert!((north - 5.0).abs() < 1e-6, "{north}");
@@ -554,6 +574,40 @@ mod tests {
         let p = t.records[0].position;
         let east_m = (p.lon_deg - 7.0).to_radians() * 6_378_137.0 * 45f64.to_radians().cos();
         assert!((east_m - 5.0).abs() < 0.02, "{east_m}");
+    }
+
+    #[test]
+    fn vgps_truth_from_another_tool_is_normalised_and_broken_rows_refused_alone() {
+        // The file: a norm of 1.000002267965134 was refused whole (exit 2).
+        let qw = 1.000_002_267_965_134_f64;
+        let text = format!(
+            "frame,lat,lon,alt,qw,qx,qy,qz\n0,45,7,300,{qw},0,0,0\n1,45,7,300,2,0,0,0\n2,45,7,x,1,0,0,0\n"
+        );
+        let t = read_truth(Path::new("truth.csv"), &text, &frames(&[0.0, 0.1, 0.2])).unwrap();
+        assert_eq!(
+            (t.format, t.records.len(), t.normalised, t.refused),
+            (TruthFormat::Vgps, 1, 1, 2)
+        );
+        assert!((t.records[0].enu_from_rig.quaternion().norm() - 1.0).abs() < 1e-15);
+        assert_eq!(
+            t.messages,
+            [
+                "truth.csv:3: field `qw`: quaternion norm 2 is not 1 within 0.001",
+                "truth.csv:4: field `alt`: `x` is not a number",
+            ]
+        );
+        assert_eq!(
+            t.warning(Path::new("truth.csv")).unwrap(),
+            "truth.csv: 2 truth rows refused, the others used (first: truth.csv:3: field `qw`: quaternion norm 2 is not 1 within 0.001)"
+        );
+        // The strict reader (library API) still reports the first broken row.
+        let e =
+            super::super::truth_from_text(Path::new("truth.csv"), &text, &frames(&[0.0, 0.1, 0.2]));
+        assert!(
+            e.unwrap_err()
+                .to_string()
+                .starts_with("truth.csv:3: field `qw`")
+        );
     }
 
     #[test]
