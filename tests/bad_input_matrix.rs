@@ -908,6 +908,117 @@ fn rows() -> Vec<Row> {
             code: 1,
             stderr: &["{t}/file/s", "Not a directory"],
         },
+        // ---- truth and GIS inventories (issue 27) ----
+        Row {
+            name: "replay: truth.csv with one broken quaternion (refused alone, replay goes on)",
+            setup: |t| {
+                let d = drive(t);
+                let text = std::fs::read_to_string(d.join("truth.csv")).expect("truth");
+                let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+                // Row 2: qw doubled (norm ≈ 2); row 3: norm off by 2e-6 (normalised).
+                let mut f: Vec<String> = lines[1].split(',').map(str::to_string).collect();
+                f[4] = "2".into();
+                lines[1] = f.join(",");
+                std::fs::write(d.join("truth.csv"), lines.join("\n") + "\n").expect("write");
+            },
+            args: &["replay", "{t}/d", "--quiet", "--out", "{t}/out"],
+            code: 0,
+            stderr: &[
+                "{t}/d/truth.csv: 1 truth rows refused",
+                "truth.csv:2: field `qw`: quaternion norm",
+            ],
+        },
+        Row {
+            name: "replay: truth file that is not a truth file (warning, replay goes on)",
+            setup: |t| std::fs::write(drive(t).join("truth.csv"), "hello\n").expect("write"),
+            args: &["replay", "{t}/d", "--quiet", "--out", "{t}/out"],
+            code: 0,
+            stderr: &[
+                "{t}/d/truth.csv: not a truth file",
+                "the drive is read without truth",
+            ],
+        },
+        Row {
+            name: "landmarks import: GeoJSON in a projected CRS (coordinates in metres)",
+            setup: |t| {
+                write(
+                    t,
+                    "l.geojson",
+                    r#"{"type":"FeatureCollection","features":[{"type":"Feature","id":"node/7","properties":{"height":8},"geometry":{"type":"Point","coordinates":[452000.5,5411000.0]}}]}"#,
+                )
+            },
+            args: &[
+                "landmarks",
+                "import",
+                "{t}/l.geojson",
+                "--ground-height",
+                "30",
+                "--out",
+                "{t}/L.csv",
+            ],
+            code: 2,
+            stderr: &[
+                "{t}/l.geojson:1: field `coordinates`: feature 0 (id node/7)",
+                "projected CRS",
+            ],
+        },
+        Row {
+            name: "landmarks import: GeoJSON with a crs member naming UTM",
+            setup: |t| {
+                write(
+                    t,
+                    "l.geojson",
+                    r#"{"type":"FeatureCollection","crs":{"type":"name","properties":{"name":"urn:ogc:def:crs:EPSG::25832"}},"features":[]}"#,
+                )
+            },
+            args: &[
+                "landmarks",
+                "import",
+                "{t}/l.geojson",
+                "--ground-height",
+                "30",
+                "--out",
+                "{t}/L.csv",
+            ],
+            code: 2,
+            stderr: &["{t}/l.geojson:1: field `crs`", "EPSG::25832"],
+        },
+        Row {
+            name: "landmarks import: a lamp without height (default height, larger sigma, said once)",
+            setup: |t| {
+                write(
+                    t,
+                    "l.geojson",
+                    r#"{"type":"FeatureCollection","features":[{"type":"Feature","id":"node/7","properties":{},"geometry":{"type":"Point","coordinates":[2.35,48.85]}}]}"#,
+                )
+            },
+            args: &[
+                "landmarks",
+                "import",
+                "{t}/l.geojson",
+                "--ground-height",
+                "30",
+                "--out",
+                "{t}/L.csv",
+            ],
+            code: 0,
+            stderr: &[
+                "{t}/l.geojson: 1 of 1 lamps have no height above ground: 6 m used with σ 1.5 m",
+            ],
+        },
+        Row {
+            name: "landmarks import: a lamp without ground height and no --ground-height",
+            setup: |t| {
+                write(
+                    t,
+                    "l.geojson",
+                    r#"{"type":"FeatureCollection","features":[{"type":"Feature","id":"node/7","properties":{"height":8},"geometry":{"type":"Point","coordinates":[2.35,48.85]}}]}"#,
+                )
+            },
+            args: &["landmarks", "import", "{t}/l.geojson", "--out", "{t}/L.csv"],
+            code: 2,
+            stderr: &["{t}/l.geojson:1: field `ele`: feature 0 (id node/7): no ground height"],
+        },
         // ---- vgps replay ----
         Row {
             name: "replay: no drive.json",

@@ -182,7 +182,7 @@ fn csv_errors_name_file_line_and_field() {
     let h = "frame,lat,lon,alt,qw,qx,qy,qz\n";
     assert_eq!(
         t(&format!("{h}0,37,-122,0,2,0,0,0\n")),
-        "t.csv:2: field `qw`: quaternion norm 2 is not 1"
+        "t.csv:2: field `qw`: quaternion norm 2 is not 1 within 0.001"
     );
     assert_eq!(
         t(&format!("{h}5,37,-122,0,1,0,0,0\n")),

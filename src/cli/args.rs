@@ -46,6 +46,8 @@ pub enum Command {
     Detect(super::detect::DetectArgs),
     /// Survey mode: a landmark inventory from a drive's GPS + heading and detections.
     Map(super::map::MapArgs),
+    /// Landmark inventories: import GIS points (GeoJSON, CSV lat/lon) into landmarks.csv.
+    Landmarks(super::landmarks::LandmarksArgs),
 }
 
 /// Arguments of `vgps locate`.

@@ -286,7 +286,7 @@ pub fn locate(
 /// [`CliError::Internal`] when the fix refuses its (validated) input.
 fn identified_report(
     number: u64,
-    rows: &[&Observation],
+    rows: &[&ObservationRecord],
     identified: &[(Ray, Geodetic, f64)],
     prior: Option<&PriorArg>,
     sigma_rad: f64,

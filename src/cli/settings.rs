@@ -168,6 +168,8 @@ pub enum Settings {
     /// `vgps calib …` (its subcommands are validated by their value parsers and run by
     /// [`super::calib::run`], which reports on the process's own streams).
     Calib(super::calib::CalibArgs),
+    /// `vgps landmarks …`.
+    Landmarks(super::landmarks::LandmarksArgs),
     /// `vgps simulate`.
     Simulate(SimulateSettings),
     /// `vgps replay`.
@@ -220,6 +222,7 @@ impl TryFrom<Cli> for Settings {
                 images: !a.no_images,
             }),
             Command::Calib(a) => Settings::Calib(a),
+            Command::Landmarks(a) => Settings::Landmarks(a),
             Command::Simulate(a) => Settings::Simulate(SimulateSettings::from(a)),
             Command::Replay(a) => Settings::Replay(ReplaySettings::try_from(a)?),
             Command::Detect(a) => Settings::Detect(DetectSettings {

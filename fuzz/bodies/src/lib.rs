@@ -471,6 +471,56 @@ fn assert_gnss_records(records: &[vgps_replay::drive::GnssRecord]) {
     }
 }
 
+/// Target `ubx`: [`vgps_replay::drive::ubx::read_ubx`] (UBX frames mixed with NMEA).
+pub fn ubx(data: &[u8]) {
+    let (records, stats) = vgps_replay::drive::ubx::read_ubx(data);
+    assert!(stats.nav_pvt <= stats.frames);
+    assert_gnss_records(&records);
+}
+
+/// Target `gis_landmarks`: [`vgps_io::gis::landmarks_from_geojson`] and
+/// [`vgps_io::gis::landmarks_from_gis_csv`] (a ground height given).
+pub fn gis_landmarks(data: &[u8]) {
+    let options = vgps_io::gis::GisOptions {
+        ground_height_m: Some(10.0),
+        ..Default::default()
+    };
+    let path = std::path::Path::new("fuzz.geojson");
+    let text = text(data);
+    for read in [
+        vgps_io::gis::landmarks_from_geojson(path, &text, &options),
+        vgps_io::gis::landmarks_from_gis_csv(path, &text, &options),
+    ]
+    .into_iter()
+    .flatten()
+    {
+        for l in &read.landmarks {
+            assert!(l.lat_deg.abs() <= 90.0 && l.lon_deg.abs() <= 180.0 && l.alt_m.is_finite());
+            assert!(l.sigma_m.is_some_and(|s| s.is_finite() && s >= 0.0));
+        }
+    }
+}
+
+/// Target `truth_formats`: [`vgps_replay::drive::truth_formats::read_truth`] for three
+/// frames (vgps, INS, NCLT and TUM truth).
+pub fn truth_formats(data: &[u8]) {
+    let frames: Vec<vgps_replay::drive::Frame> = (0..3)
+        .map(|k| vgps_replay::drive::Frame {
+            frame: k,
+            time_s: k as f64 * 0.1,
+            images: vec![],
+        })
+        .collect();
+    let path = std::path::Path::new("fuzz.csv");
+    if let Ok(read) = vgps_replay::drive::truth_formats::read_truth(path, &text(data), &frames) {
+        for t in &read.records {
+            let p = &t.position;
+            assert!(p.lat_deg.abs() <= 90.0 && p.lon_deg.abs() <= 180.0 && p.alt_m.is_finite());
+            assert!((t.enu_from_rig.norm() - 1.0).abs() < 1e-9);
+        }
+    }
+}
+
 /// Target `gpx`: [`vgps_replay::drive::gpx::read_gpx`] (GPX 1.0/1.1 track points).
 pub fn gpx(data: &[u8]) {
     if let Ok((records, _)) =
@@ -753,6 +803,9 @@ pub const TARGETS: &[Target] = &[
     ("nmea", nmea),
     ("gpx", gpx),
     ("nclt_gps", nclt_gps),
+    ("ubx", ubx),
+    ("gis_landmarks", gis_landmarks),
+    ("truth_formats", truth_formats),
     ("png_decode", png_decode),
     ("jpeg_decode", jpeg_decode),
     ("tiff_decode", tiff_decode),

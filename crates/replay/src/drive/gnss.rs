@@ -1,6 +1,6 @@
-//! Satellite GPS files of any supported format: NMEA 0183 ([`super::nmea`]), GPX 1.0/1.1
-//! tracks ([`super::gpx`]) and NCLT `gps.csv` ([`super::nclt_gps`]), read into the drive's
-//! [`GnssRecord`]s.
+//! Satellite GPS files of any supported format: NMEA 0183 ([`super::nmea`]), u-blox UBX
+//! mixed with NMEA ([`super::ubx`]), GPX 1.0/1.1 tracks ([`super::gpx`]) and NCLT `gps.csv`
+//! ([`super::nclt_gps`]), read into the drive's [`GnssRecord`]s.
 //!
 //! # Time
 //! Drive times are Unix seconds (UTC), and so are the times of the three formats: NMEA's
@@ -10,6 +10,8 @@
 //! `time_offset_s`, added to every time of the file (`drive time = file time + offset`).
 //!
 //! # Format detection
+//! [`GnssFormat::detect_bytes`]: a file holding a UBX frame with a right checksum is UBX
+//! (`B5 62` sync, Fletcher checksum; its NMEA is read too); otherwise
 //! [`GnssFormat::detect`]: the content decides when it is unambiguous (`<` first: GPX; `$`
 //! or `!` first: NMEA; a first line of numbers separated by commas: NCLT), else the file
 //! extension (`.gpx`, `.nmea`/`.nma`, `.csv`), else NMEA (whose reader counts what it
@@ -31,6 +33,8 @@ pub enum GnssFormat {
     Gpx,
     /// NCLT `gps.csv`: `utime,mode,num_sats,lat,lng,alt,track,speed`, no header.
     Nclt,
+    /// u-blox UBX binary (`NAV-PVT`) mixed with NMEA, as u-blox receivers log.
+    Ubx,
 }
 
 impl GnssFormat {
@@ -40,6 +44,7 @@ impl GnssFormat {
             Self::Nmea => "nmea",
             Self::Gpx => "gpx",
             Self::Nclt => "nclt",
+            Self::Ubx => "ubx",
         }
     }
 
@@ -50,6 +55,7 @@ impl GnssFormat {
             "gpx" => Some(Self::Gpx),
             "nmea" | "nma" => Some(Self::Nmea),
             "csv" => Some(Self::Nclt),
+            "ubx" => Some(Self::Ubx),
             _ => None,
         }
     }
@@ -89,6 +95,15 @@ impl GnssFormat {
         Self::sniff(text)
             .or_else(|| Self::from_extension(path))
             .unwrap_or(Self::Nmea)
+    }
+
+    /// The format of a file's bytes: UBX when they hold a UBX frame with a right checksum
+    /// ([`super::ubx::contains_ubx`]), else [`GnssFormat::detect`] of their text.
+    pub fn detect_bytes(path: &Path, bytes: &[u8]) -> Self {
+        if super::ubx::contains_ubx(bytes) {
+            return Self::Ubx;
+        }
+        Self::detect(path, &String::from_utf8_lossy(bytes))
     }
 }
 
@@ -187,6 +202,39 @@ impl GnssFileStats {
             no_elevation: 0,
             other_skipped: 0,
             messages: Vec::new(),
+        }
+    }
+
+    /// The counts of the UBX reader in this form (NMEA lines and UBX frames together).
+    pub fn from_ubx(stats: &super::ubx::UbxStats, records: &[GnssRecord]) -> Self {
+        let fixes = records.iter().filter(|r| r.fix.is_some()).count();
+        let mut messages = Vec::new();
+        if stats.skipped() > stats.other {
+            messages.push(format!(
+                "UBX: {} frames, {} NAV-PVT used; skipped {} bad checksum, {} truncated, {} without a valid UTC time, {} invalid",
+                stats.frames,
+                stats.nav_pvt,
+                stats.bad_checksum,
+                stats.truncated,
+                stats.untimed,
+                stats.invalid,
+            ));
+        }
+        messages.extend(stats.nmea.messages.iter().cloned());
+        messages.truncate(MAX_GNSS_MESSAGES);
+        Self {
+            entries: stats.frames + stats.bad_checksum + stats.truncated + stats.nmea.lines,
+            fixes,
+            no_fix: records.len() - fixes,
+            other_skipped: stats.untimed
+                + stats.invalid
+                + stats.bad_checksum
+                + stats.truncated
+                + stats.nmea.bad_checksum
+                + stats.nmea.truncated
+                + stats.nmea.invalid,
+            messages,
+            ..Self::new(GnssFormat::Ubx)
         }
     }
 
@@ -293,37 +341,43 @@ pub fn read_gnss_file(
         path: path.to_path_buf(),
         source,
     })?;
-    let text = match String::from_utf8(bytes) {
-        Ok(s) => s,
-        Err(e) => String::from_utf8_lossy(e.as_bytes()).into_owned(),
-    };
-    let format = format.unwrap_or_else(|| GnssFormat::detect(path, &text));
+    let format = format.unwrap_or_else(|| GnssFormat::detect_bytes(path, &bytes));
+    let text = || String::from_utf8_lossy(&bytes).into_owned();
     let (mut records, stats, nmea_stats) = match format {
         GnssFormat::Nmea => {
-            let (records, stats) = nmea::read_nmea(&text);
+            let (records, stats) = nmea::read_nmea(&text());
             let summary = GnssFileStats::from_nmea(&stats, &records);
             (records, summary, Some(stats))
         }
+        GnssFormat::Ubx => {
+            let (records, stats) = super::ubx::read_ubx(&bytes);
+            let summary = GnssFileStats::from_ubx(&stats, &records);
+            (records, summary, Some(stats.nmea))
+        }
         GnssFormat::Gpx => {
-            let (records, stats) = super::gpx::read_gpx(path, &text)?;
+            let (records, stats) = super::gpx::read_gpx(path, &text())?;
             (records, stats, None)
         }
         GnssFormat::Nclt => {
-            let (records, stats) = super::nclt_gps::read_nclt_gps(path, &text)?;
+            let (records, stats) = super::nclt_gps::read_nclt_gps(path, &text())?;
             (records, stats, None)
         }
     };
-    if time_offset_s != 0.0 {
-        for r in &mut records {
-            r.time_s += time_offset_s;
-        }
-    }
+    shift(&mut records, time_offset_s);
     Ok(GnssLog {
         path: path.to_path_buf(),
         records,
         stats,
         nmea: nmea_stats,
     })
+}
+
+fn shift(records: &mut [GnssRecord], time_offset_s: f64) {
+    if time_offset_s != 0.0 {
+        for r in records {
+            r.time_s += time_offset_s;
+        }
+    }
 }
 
 /// Sorts records by time (stable: equal times keep the file order).

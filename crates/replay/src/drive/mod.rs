@@ -31,6 +31,8 @@ pub mod gpx;
 pub mod nclt_gps;
 pub mod nmea;
 mod tables;
+pub mod truth_formats;
+pub mod ubx;
 
 pub use nmea::{GnssFix, GnssRecord, NmeaStats};
 pub use tables::{
@@ -334,8 +336,11 @@ impl Drive {
         }
         if let Some(name) = &manifest.gnss {
             let path = dir.join(name);
-            let text = read_text(&path)?;
-            let format = gnss::GnssFormat::detect(&path, &text);
+            let bytes = std::fs::read(&path).map_err(|source| DriveError::Read {
+                path: path.clone(),
+                source,
+            })?;
+            let format = gnss::GnssFormat::detect_bytes(&path, &bytes);
             if format != gnss::GnssFormat::Nmea {
                 drive.replace_gnss(gnss::read_gnss_file(&path, Some(format), 0.0)?);
             }
@@ -362,8 +367,21 @@ impl Drive {
             drive.nmea_stats = Some(stats);
         }
         if let Some(name) = &manifest.truth {
+            // The truth is optional: a file that cannot be used is a warning, a broken row
+            // is refused alone, and the drive is read on.
             let path = dir.join(name);
-            drive.truth = truth_from_text(&path, &read_text(&path)?, &drive.frames)?;
+            let read = read_text(&path)
+                .map_err(|e| e.to_string())
+                .and_then(|text| truth_formats::read_truth(&path, &text, &drive.frames));
+            match read {
+                Ok(read) => {
+                    drive.warnings.extend(read.warning(&path));
+                    drive.truth = read.records;
+                }
+                Err(message) => drive
+                    .warnings
+                    .push(format!("{message}; the drive is read without truth")),
+            }
         }
         Ok(drive)
     }

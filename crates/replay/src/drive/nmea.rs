@@ -1,9 +1,13 @@
-//! Satellite GPS as NMEA 0183 text: `GGA` (position, quality, HDOP, satellites), `RMC` (the
-//! date) and `HDT` (true heading), as a receiver logs them.
+//! Satellite GPS as NMEA 0183 text: `GGA` or `GNS` (position, quality, HDOP, satellites),
+//! `RMC` (the date) and `HDT` (true heading), as a receiver logs them, from any talker (`GP`,
+//! `GN`, `GL`, `GA`, `GB`, …).
 //!
 //! The reader is small and strict about each sentence but never fails on a bad line: a line
 //! without `$`, a sentence whose checksum is wrong, a truncated last line and a sentence of an
-//! unsupported type are skipped and counted in [`NmeaStats`]. (The `nmea` crate was
+//! unsupported type are skipped and counted in [`NmeaStats`]. A sentence is found anywhere in
+//! a line: bytes before its `$` or after its checksum (binary messages of the same port, a
+//! logger's prefix and suffix such as Android's `NMEA,$GPGGA,…*63,1699400577561`) are skipped
+//! and the line counted in [`NmeaStats::noisy`]; a line may hold several sentences. (The `nmea` crate was
 //! considered: it stores the altitude, the geoid separation and the HDOP as `f32` and brings
 //! `chrono` and `nom`; the three sentences needed here are simpler to read directly.)
 //!
@@ -14,6 +18,11 @@
 //! epoch. `GGA` sentences before the first `RMC` are dated by it; without any `RMC` they are
 //! dropped and counted ([`NmeaStats::undated`]). An `HDT` applies to the record of the
 //! preceding `GGA` (an `HDT` before any `GGA` is counted in [`NmeaStats::unattached`]).
+//!
+//! # GNS
+//! A `GNS` gives what a `GGA` gives; its mode letters (one per constellation) become the GGA
+//! quality of the best of them (`R` 4, `F` 5, `P`/`D` 2, `A` 1, `E` 6, all `N`: no fix). When
+//! a receiver sends both for one epoch, the `GGA` is kept and the `GNS` counted as used.
 //!
 //! # Heights
 //! `GGA` gives the height above mean sea level and the geoid separation `N`; the ellipsoidal
@@ -69,8 +78,11 @@ pub struct NmeaStats {
     pub used: usize,
     /// Sentences whose checksum is wrong or missing.
     pub bad_checksum: usize,
-    /// Lines that are not a sentence (no leading `$`).
+    /// Lines that hold no sentence (no `$`).
     pub garbage: usize,
+    /// Lines with bytes before a sentence's `$` or after its checksum (binary noise, a
+    /// logger's prefix or suffix); their sentences are read.
+    pub noisy: usize,
     /// The last line, unterminated and not a valid sentence.
     pub truncated: usize,
     /// Valid sentences of other types (GSA, GSV, VTG, …).
@@ -117,6 +129,8 @@ struct Epoch {
     date: Option<(i64, f64)>,
     fix: Option<GnssFix>,
     heading_deg: Option<f64>,
+    /// Read from a `GNS` (a `GGA` of the same epoch replaces it).
+    from_gns: bool,
 }
 
 /// Reads NMEA text into receiver epochs (sorted by time) and the counts of skipped lines.
@@ -154,54 +168,60 @@ pub fn read_nmea(text: &str) -> (Vec<GnssRecord>, NmeaStats) {
         }
         stats.lines += 1;
         let last_unterminated = k + 1 == count && !terminated;
-        let body = match sentence_body(line) {
-            Ok(body) => body,
-            Err(kind) => {
-                if last_unterminated && kind != LineError::Garbage {
-                    stats.truncated += 1;
-                    stats.note(number, "truncated last line");
-                } else if kind == LineError::Garbage {
-                    stats.garbage += 1;
-                    stats.note(number, "not a sentence");
-                } else {
-                    stats.bad_checksum += 1;
-                    stats.note(number, "bad or missing checksum");
-                }
-                continue;
+        let found = find_sentences(line);
+        if found.noisy && !found.bodies.is_empty() {
+            stats.noisy += 1;
+        }
+        if found.bodies.is_empty() {
+            if last_unterminated && found.error != Some(LineError::Garbage) {
+                stats.truncated += 1;
+                stats.note(number, "truncated last line");
+            } else if found.error == Some(LineError::Garbage) || found.error.is_none() {
+                stats.garbage += 1;
+                stats.note(number, "not a sentence");
+            } else {
+                stats.bad_checksum += 1;
+                stats.note(number, "bad or missing checksum");
             }
-        };
-        let fields: Vec<&str> = body.split(',').collect();
-        let kind = fields[0].get(2..).unwrap_or("");
-        let result = match kind {
-            "RMC" => parse_rmc(&fields).map(|(day, tod)| {
-                date = Some((day, tod));
-                first_date.get_or_insert((day, tod));
-            }),
-            "GGA" => parse_gga(&fields).map(|(tod_s, fix)| {
-                epochs.push(Epoch {
-                    tod_s,
-                    date,
-                    fix,
-                    heading_deg: None,
-                });
-            }),
-            "HDT" => parse_hdt(&fields).map(|heading| match epochs.last_mut() {
-                Some(e) => e.heading_deg = Some(heading),
-                None => {
-                    stats.unattached += 1;
-                    stats.note(number, "HDT before any GGA");
+            continue;
+        }
+        for body in found.bodies {
+            let fields: Vec<&str> = body.split(',').collect();
+            let kind = fields[0].get(2..).unwrap_or("");
+            let result = match kind {
+                "RMC" => parse_rmc(&fields).map(|(day, tod)| {
+                    date = Some((day, tod));
+                    first_date.get_or_insert((day, tod));
+                }),
+                "GGA" | "GNS" => {
+                    let gns = kind == "GNS";
+                    let parsed = if gns {
+                        parse_gns(&fields)
+                    } else {
+                        parse_gga(&fields)
+                    };
+                    parsed.map(|(tod_s, fix)| {
+                        push_epoch(&mut epochs, tod_s, date, fix, gns);
+                    })
                 }
-            }),
-            _ => {
-                stats.unsupported += 1;
-                continue;
-            }
-        };
-        match result {
-            Ok(()) => stats.used += 1,
-            Err(reason) => {
-                stats.invalid += 1;
-                stats.note(number, format!("{}: {reason}", fields[0]));
+                "HDT" => parse_hdt(&fields).map(|heading| match epochs.last_mut() {
+                    Some(e) => e.heading_deg = Some(heading),
+                    None => {
+                        stats.unattached += 1;
+                        stats.note(number, "HDT before any GGA");
+                    }
+                }),
+                _ => {
+                    stats.unsupported += 1;
+                    continue;
+                }
+            };
+            match result {
+                Ok(()) => stats.used += 1,
+                Err(reason) => {
+                    stats.invalid += 1;
+                    stats.note(number, format!("{}: {reason}", fields[0]));
+                }
             }
         }
     }
@@ -233,18 +253,94 @@ enum LineError {
     Checksum,
 }
 
-/// The text between `$` and `*` of a sentence whose checksum is right.
-fn sentence_body(line: &str) -> Result<&str, LineError> {
-    let rest = line.strip_prefix('$').ok_or(LineError::Garbage)?;
-    let (body, sum) = rest.rsplit_once('*').ok_or(LineError::Checksum)?;
-    if sum.len() != 2 || body.len() < 5 {
+/// The sentences found in one line.
+struct Found<'a> {
+    /// The text between `$` and `*` of each sentence whose checksum is right.
+    bodies: Vec<&'a str>,
+    /// Bytes outside the sentences (before a `$`, after a checksum).
+    noisy: bool,
+    /// Why the last candidate failed, when none was read.
+    error: Option<LineError>,
+}
+
+/// Every `$…*hh` sentence of a line whose checksum is right, wherever it starts.
+fn find_sentences(line: &str) -> Found<'_> {
+    let mut found = Found {
+        bodies: Vec::new(),
+        noisy: false,
+        error: Some(LineError::Garbage),
+    };
+    let mut rest = line;
+    while let Some(at) = rest.find('$') {
+        if at > 0 {
+            found.noisy = true;
+        }
+        let candidate = &rest[at + 1..];
+        match sentence_body(candidate) {
+            Ok((body, used)) => {
+                found.bodies.push(body);
+                found.error = None;
+                rest = &candidate[used..];
+            }
+            Err(kind) => {
+                if found.bodies.is_empty() {
+                    found.error = Some(kind);
+                }
+                rest = candidate;
+            }
+        }
+    }
+    if !rest.trim().is_empty() && !found.bodies.is_empty() {
+        found.noisy = true;
+    }
+    found
+}
+
+/// The body (between `$` and `*`) of the sentence at the start of `text` (after its `$`)
+/// when its checksum is right, and the bytes it takes with the checksum.
+fn sentence_body(text: &str) -> Result<(&str, usize), LineError> {
+    let star = text.find(['*', '$']).ok_or(LineError::Checksum)?;
+    if !text[star..].starts_with('*') {
+        return Err(LineError::Checksum);
+    }
+    let body = &text[..star];
+    let sum = text.get(star + 1..star + 3).ok_or(LineError::Checksum)?;
+    if body.len() < 5 || !body.is_ascii() {
         return Err(LineError::Checksum);
     }
     let expected = u8::from_str_radix(sum, 16).map_err(|_| LineError::Checksum)?;
     if checksum(body) != expected {
         return Err(LineError::Checksum);
     }
-    Ok(body)
+    Ok((body, star + 3))
+}
+
+/// Adds a GGA or GNS epoch; a GNS of the same time of day as the previous epoch from a GGA
+/// (or the reverse) is one epoch, the GGA's.
+fn push_epoch(
+    epochs: &mut Vec<Epoch>,
+    tod_s: f64,
+    date: Option<(i64, f64)>,
+    fix: Option<GnssFix>,
+    from_gns: bool,
+) {
+    if let Some(last) = epochs.last_mut()
+        && last.tod_s == tod_s
+        && last.from_gns != from_gns
+    {
+        if last.from_gns {
+            last.fix = fix;
+            last.from_gns = false;
+        }
+        return;
+    }
+    epochs.push(Epoch {
+        tod_s,
+        date,
+        fix,
+        heading_deg: None,
+        from_gns,
+    });
 }
 
 fn field<'a>(fields: &[&'a str], k: usize) -> &'a str {
@@ -338,6 +434,67 @@ fn parse_gga(f: &[&str]) -> Result<(f64, Option<GnssFix>), String> {
     let hdop = number(f, 8, "hdop")?;
     let msl = number(f, 9, "altitude")?.ok_or("altitude is missing")?;
     let separation = number(f, 11, "geoid separation")?.unwrap_or(0.0);
+    let position = Geodetic::try_new(lat, lon, msl + separation).map_err(|e| e.to_string())?;
+    Ok((
+        tod,
+        Some(GnssFix {
+            position,
+            quality,
+            hdop,
+            num_sats,
+        }),
+    ))
+}
+
+/// GNS → (time of day, fix or none): `GNS,time,lat,N,lon,E,mode,sats,hdop,alt,sep,…`.
+fn parse_gns(f: &[&str]) -> Result<(f64, Option<GnssFix>), String> {
+    let tod = time_of_day(field(f, 1))?;
+    let mode = field(f, 6);
+    let bad_mode = || format!("mode `{mode}` is not GNS mode letters");
+    if mode.is_empty() {
+        return Err(bad_mode());
+    }
+    let mut quality: Option<u8> = None;
+    for c in mode.chars() {
+        let q = match c {
+            'N' => None,
+            'A' => Some(1),
+            'D' | 'P' => Some(2),
+            'R' => Some(4),
+            'F' => Some(5),
+            'E' => Some(6),
+            'M' => Some(7),
+            'S' => Some(8),
+            _ => return Err(bad_mode()),
+        };
+        // The best solution of the constellations: RTK fixed, float, differential, autonomous.
+        let rank = |q: u8| match q {
+            4 => 0,
+            5 => 1,
+            2 => 2,
+            1 => 3,
+            _ => 4,
+        };
+        quality = match (quality, q) {
+            (Some(a), Some(b)) => Some(if rank(b) < rank(a) { b } else { a }),
+            (a, b) => a.or(b),
+        };
+    }
+    let Some(quality) = quality else {
+        return Ok((tod, None));
+    };
+    let lat = angle(field(f, 2), field(f, 3), 2, 90.0)?;
+    let lon = angle(field(f, 4), field(f, 5), 3, 180.0)?;
+    let num_sats = match field(f, 7) {
+        "" => None,
+        s => Some(
+            s.parse::<u32>()
+                .map_err(|_| format!("satellites `{s}` is not a count"))?,
+        ),
+    };
+    let hdop = number(f, 8, "hdop")?;
+    let msl = number(f, 9, "altitude")?.ok_or("altitude is missing")?;
+    let separation = number(f, 10, "geoid separation")?.unwrap_or(0.0);
     let position = Geodetic::try_new(lat, lon, msl + separation).map_err(|e| e.to_string())?;
     Ok((
         tod,

@@ -6,8 +6,10 @@ use std::path::Path;
 use vgps_io::table::{Row, Table};
 use vgps_io::{InputError, Landmark};
 
-/// Largest accepted deviation of a truth quaternion's norm from 1.
-pub const QUATERNION_NORM_TOLERANCE: f64 = 1e-6;
+/// Largest accepted deviation of a truth quaternion's norm from 1: a quaternion within it
+/// is normalised (rounding and format conversions leave norms off by ~1e-6); one further off
+/// is a broken row.
+pub const QUATERNION_NORM_TOLERANCE: f64 = 1e-3;
 /// Number of cameras a frame may name images for (`image_0` … `image_5`).
 pub const MAX_IMAGE_COLUMNS: usize = 6;
 /// The image column names per camera.
@@ -181,64 +183,112 @@ pub fn detections_from_text(
     Ok(out)
 }
 
-/// Reads `truth.csv`: `frame,lat,lon,alt,qw,qx,qy,qz`.
+/// Reads `truth.csv`: `frame,lat,lon,alt,qw,qx,qy,qz`. A quaternion whose norm is within
+/// [`QUATERNION_NORM_TOLERANCE`] of 1 is normalised.
 ///
 /// # Errors
 /// [`InputError`] naming file, line and field: bad header or value, latitude out of range,
 /// quaternion norm not 1 within [`QUATERNION_NORM_TOLERANCE`], a frame that does not
-/// increase or is not in `frames`.
+/// increase or is not in `frames`. (A drive reads its truth with
+/// [`super::truth_formats::read_truth`], which refuses such rows one by one instead.)
 pub fn truth_from_text(
     path: &Path,
     text: &str,
     frames: &[FrameRecord],
 ) -> Result<Vec<TruthRecord>, InputError> {
+    let (records, rows) = truth_rows_inner(path, text, frames)?;
+    for row in rows {
+        row?;
+    }
+    Ok(records)
+}
+
+/// The good records of a `truth.csv` and, per data row, whether its quaternion was
+/// normalised or why the row was refused (`file:line: field …`).
+pub(super) type TruthRows = (Vec<TruthRecord>, Vec<Result<bool, String>>);
+
+/// As [`truth_from_text`], refusing bad rows one by one; `Err` only for the header.
+pub(super) fn truth_rows(
+    path: &Path,
+    text: &str,
+    frames: &[Frame],
+) -> Result<TruthRows, InputError> {
+    let (records, rows) = truth_rows_inner(path, text, frames)?;
+    Ok((
+        records,
+        rows.into_iter()
+            .map(|r| r.map_err(|e| e.to_string()))
+            .collect(),
+    ))
+}
+
+#[allow(clippy::type_complexity)]
+fn truth_rows_inner(
+    path: &Path,
+    text: &str,
+    frames: &[Frame],
+) -> Result<(Vec<TruthRecord>, Vec<Result<bool, InputError>>), InputError> {
     let cols = ["frame", "lat", "lon", "alt", "qw", "qx", "qy", "qz"];
     let expected = "frame,lat,lon,alt,qw,qx,qy,qz";
     let table = Table::read(path, text.as_bytes(), &cols, expected)?;
     table.require(&cols, expected)?;
     let mut out: Vec<TruthRecord> = Vec::new();
+    let mut rows = Vec::new();
     for row in table.rows() {
-        let row = row?;
-        let frame = unsigned(&row, "frame")?;
-        if out.last().is_some_and(|t| t.frame >= frame) {
-            return Err(row.error("frame", format!("frame {frame} does not increase")));
-        }
-        if frames.binary_search_by_key(&frame, |f| f.frame).is_err() {
-            return Err(row.error("frame", format!("frame {frame} is not in the frames file")));
-        }
-        let lat = row.required_f64("lat")?;
-        if lat.abs() > vgps_io::MAX_ABS_LAT_DEG {
-            return Err(row.error(
-                "lat",
-                format!("latitude {lat} is outside [-90, 90] degrees"),
-            ));
-        }
-        let lon = row.required_f64("lon")?;
-        if lon.abs() > vgps_io::MAX_ABS_LON_DEG {
-            return Err(row.error(
-                "lon",
-                format!("longitude {lon} is outside [-180, 180] degrees"),
-            ));
-        }
-        let alt = row.required_f64("alt")?;
-        let position = vgps_geometry::geo::Geodetic::try_new(lat, lon, alt)
-            .map_err(|e| row.error("alt", e.to_string()))?;
-        let q = Quaternion::new(
-            row.required_f64("qw")?,
-            row.required_f64("qx")?,
-            row.required_f64("qy")?,
-            row.required_f64("qz")?,
-        );
-        if (q.norm() - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
-            return Err(row.error("qw", format!("quaternion norm {} is not 1", q.norm())));
-        }
-        out.push(TruthRecord {
+        let result = row.and_then(|row| truth_row(&row, frames, out.last()));
+        rows.push(result.map(|(record, normalised)| {
+            out.push(record);
+            normalised
+        }));
+    }
+    Ok((out, rows))
+}
+
+fn truth_row(
+    row: &Row<'_>,
+    frames: &[Frame],
+    previous: Option<&TruthRecord>,
+) -> Result<(TruthRecord, bool), InputError> {
+    let frame = unsigned(row, "frame")?;
+    if previous.is_some_and(|t| t.frame >= frame) {
+        return Err(row.error("frame", format!("frame {frame} does not increase")));
+    }
+    if frames.binary_search_by_key(&frame, |f| f.frame).is_err() {
+        return Err(row.error("frame", format!("frame {frame} is not in the frames file")));
+    }
+    let lat = row.required_f64("lat")?;
+    if lat.abs() > vgps_io::MAX_ABS_LAT_DEG {
+        return Err(row.error(
+            "lat",
+            format!("latitude {lat} is outside [-90, 90] degrees"),
+        ));
+    }
+    let lon = row.required_f64("lon")?;
+    if lon.abs() > vgps_io::MAX_ABS_LON_DEG {
+        return Err(row.error(
+            "lon",
+            format!("longitude {lon} is outside [-180, 180] degrees"),
+        ));
+    }
+    let alt = row.required_f64("alt")?;
+    let position = vgps_geometry::geo::Geodetic::try_new(lat, lon, alt)
+        .map_err(|e| row.error("alt", e.to_string()))?;
+    let q = Quaternion::new(
+        row.required_f64("qw")?,
+        row.required_f64("qx")?,
+        row.required_f64("qy")?,
+        row.required_f64("qz")?,
+    );
+    let (enu_from_rig, normalised) =
+        super::truth_formats::normalise(q).map_err(|e| row.error("qw", e))?;
+    Ok((
+        TruthRecord {
             frame,
             position,
-            enu_from_rig: UnitQuaternion::new_normalize(q),
-        });
-    }
-    Ok(out)
+            enu_from_rig,
+        },
+        normalised,
+    ))
 }
 
 fn opt_f64(x: Option<f64>) -> String {
