@@ -46,6 +46,8 @@ pub enum Command {
     Detect(super::detect::DetectArgs),
     /// Survey mode: a landmark inventory from a drive's GPS + heading and detections.
     Map(super::map::MapArgs),
+    /// Logs of other tools into a drive folder: rosbag2 MCAP, NCLT sessions, image folders.
+    Import(super::import::ImportArgs),
 }
 
 /// Arguments of `vgps locate`.

@@ -16,6 +16,7 @@ pub mod demo;
 pub mod detect;
 pub mod gnss_input;
 pub mod image_size;
+pub mod import;
 pub mod locate;
 pub mod map;
 pub mod replay;
@@ -103,6 +104,7 @@ where
         Settings::Replay(s) => replay::run(&s, out, err),
         Settings::Detect(s) => detect::run(&s, out, err),
         Settings::Map(s) => map::run(&s, out, err),
+        Settings::Import(a) => import::run(&a, out, err),
         // Handled above: `vgps calib` reports on its own.
         Settings::Calib(_) => Ok(()),
     });
