@@ -111,7 +111,9 @@ pub struct McapInputArgs {
 
 /// Whether `path` names an MCAP recording rather than a drive directory.
 pub fn is_mcap(path: &Path) -> bool {
-    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("mcap")) && !path.is_dir()
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("mcap"))
+        && !path.is_dir()
 }
 
 fn input_error(e: ImportError) -> CliError {
@@ -126,7 +128,11 @@ fn print_warnings(report: &ImportReport, err: &mut dyn Write) {
         let _ = writeln!(err, "vgps: warning: {w}");
     }
     if report.more_warnings > 0 {
-        let _ = writeln!(err, "vgps: warning: {} more warning(s)", report.more_warnings);
+        let _ = writeln!(
+            err,
+            "vgps: warning: {} more warning(s)",
+            report.more_warnings
+        );
     }
 }
 
@@ -139,7 +145,10 @@ fn mcap_options(
     Ok(McapImportOptions {
         rig,
         landmarks,
-        topics: topics.map(read_topic_map).transpose().map_err(input_error)?,
+        topics: topics
+            .map(read_topic_map)
+            .transpose()
+            .map_err(input_error)?,
         stamp_tolerance_s,
     })
 }
@@ -243,12 +252,7 @@ pub fn run(args: &ImportArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resul
     };
     print_warnings(&report, err);
     if !common.quiet {
-        writeln!(
-            out,
-            "{}: {}{extra}",
-            common.out.display(),
-            report.summary()
-        )?;
+        writeln!(out, "{}: {}{extra}", common.out.display(), report.summary())?;
     }
     Ok(())
 }

@@ -256,9 +256,9 @@ pub fn write_drive(
         })?;
         (abs.display().to_string(), None)
     } else {
-        let name = rig
-            .file_name()
-            .map_or("calibration.json".into(), |n| n.to_string_lossy().into_owned());
+        let name = rig.file_name().map_or("calibration.json".into(), |n| {
+            n.to_string_lossy().into_owned()
+        });
         (format!("calibration_{name}"), Some(read(rig)?))
     };
     let landmark_bytes = match landmarks {
@@ -355,8 +355,7 @@ pub fn navsat_to_csv(rows: &[NavSatRow]) -> String {
 
 /// CSV text of IMU rows: `time_s,qx,qy,qz,qw,var_roll,var_pitch,var_yaw,wx,wy,wz,ax,ay,az`.
 pub fn imu_to_csv(rows: &[ImuRow]) -> String {
-    let mut out =
-        String::from("time_s,qx,qy,qz,qw,var_roll,var_pitch,var_yaw,wx,wy,wz,ax,ay,az\n");
+    let mut out = String::from("time_s,qx,qy,qz,qw,var_roll,var_pitch,var_yaw,wx,wy,wz,ax,ay,az\n");
     for r in rows {
         let _ = write!(out, "{}", r.time_s);
         for v in r

@@ -81,7 +81,10 @@ pub fn camera_folders(root: &Path) -> Result<Vec<(usize, PathBuf)>, ImportError>
             continue;
         }
         let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
-        let Some(camera) = name.as_deref().and_then(crate::mcap_import::camera_of_topic) else {
+        let Some(camera) = name
+            .as_deref()
+            .and_then(crate::mcap_import::camera_of_topic)
+        else {
             continue;
         };
         if camera >= MAX_IMAGE_COLUMNS {
@@ -110,10 +113,7 @@ pub fn camera_folders(root: &Path) -> Result<Vec<(usize, PathBuf)>, ImportError>
 }
 
 /// Reads a `times.csv` (`file,time_s`).
-fn read_times(
-    path: &Path,
-    report: &mut ImportReport,
-) -> Result<HashMap<String, i64>, ImportError> {
+fn read_times(path: &Path, report: &mut ImportReport) -> Result<HashMap<String, i64>, ImportError> {
     let text = std::fs::read_to_string(path).map_err(|source| ImportError::Read {
         path: path.to_path_buf(),
         source,
@@ -210,8 +210,14 @@ mod tests {
 
     #[test]
     fn times_from_names() {
-        assert_eq!(time_ns_of_name("1700000000.png"), Some(1_700_000_000_000_000_000));
-        assert_eq!(time_ns_of_name("1700000000123.png"), Some(1_700_000_000_123_000_000));
+        assert_eq!(
+            time_ns_of_name("1700000000.png"),
+            Some(1_700_000_000_000_000_000)
+        );
+        assert_eq!(
+            time_ns_of_name("1700000000123.png"),
+            Some(1_700_000_000_123_000_000)
+        );
         assert_eq!(
             time_ns_of_name("x_1700000000123456789.png"),
             Some(1_700_000_000_123_456_789)
@@ -227,7 +233,12 @@ mod tests {
         std::fs::create_dir(root.join("Cam0")).unwrap();
         std::fs::create_dir(root.join("Cam1")).unwrap();
         std::fs::create_dir(root.join("notes")).unwrap();
-        for n in ["1326030975726043.tiff", "1326030975926043.tiff", "readme.txt", "x.png"] {
+        for n in [
+            "1326030975726043.tiff",
+            "1326030975926043.tiff",
+            "readme.txt",
+            "x.png",
+        ] {
             std::fs::write(root.join("Cam0").join(n), b"").unwrap();
         }
         std::fs::write(root.join("Cam1").join("a.jpg"), b"").unwrap();

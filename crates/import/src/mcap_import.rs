@@ -13,7 +13,7 @@
 //!
 //! # Satellite GPS
 //! Each `NavSatFix` becomes an epoch of `gnss.nmea` at its header stamp: `status` −1 (no fix)
-//! an epoch without fix (with a warning naming the record), 0 GGA quality 1, 1 (SBAS) quality
+//! an epoch without fix (a warning names the record where each outage starts), 0 GGA quality 1, 1 (SBAS) quality
 //! 2, 2 (GBAS, as ROS drivers report RTK) quality 4. Every field, status and covariance
 //! included, is also kept in `navsatfix.csv`; IMU samples go to `imu.csv`.
 
@@ -138,6 +138,8 @@ struct State<'o> {
     ignored_types: BTreeMap<String, u64>,
     cameras: HashMap<String, Option<usize>>,
     error: Option<ImportError>,
+    /// Whether the last NavSatFix had no fix (one warning per outage, not per epoch).
+    in_outage: bool,
 }
 
 impl State<'_> {
@@ -178,7 +180,14 @@ impl State<'_> {
         let Some(kind) = kind_of(m.schema) else {
             *self
                 .ignored_types
-                .entry(if m.schema.is_empty() { "(no schema)" } else { m.schema }.to_string())
+                .entry(
+                    if m.schema.is_empty() {
+                        "(no schema)"
+                    } else {
+                        m.schema
+                    }
+                    .to_string(),
+                )
                 .or_insert(0) += 1;
             return;
         };
@@ -215,20 +224,27 @@ impl State<'_> {
         let Some(camera) = self.camera(m.topic) else {
             let why = match &self.options.topics {
                 Some(_) => "image topic not in the topic mapping file".to_string(),
-                None => "image topic without a camera number in its name (give a topic mapping file)".to_string(),
+                None => {
+                    "image topic without a camera number in its name (give a topic mapping file)"
+                        .to_string()
+                }
             };
             self.skip_topic(m.topic, why);
             return;
         };
         let decoded = match kind {
-            Kind::Compressed => ros_decode::compressed_image(m.data).map_err(|e| e.to_string()).and_then(|img| {
-                let ext = compressed_extension(img.format, img.data)?;
-                Ok((stamp_or_log_time(&img.header, m), ext, img.data.to_vec()))
-            }),
-            _ => ros_decode::raw_image(m.data).map_err(|e| e.to_string()).and_then(|img| {
-                let png = raw_to_png(&img)?;
-                Ok((stamp_or_log_time(&img.header, m), "png", png))
-            }),
+            Kind::Compressed => ros_decode::compressed_image(m.data)
+                .map_err(|e| e.to_string())
+                .and_then(|img| {
+                    let ext = compressed_extension(img.format, img.data)?;
+                    Ok((stamp_or_log_time(&img.header, m), ext, img.data.to_vec()))
+                }),
+            _ => ros_decode::raw_image(m.data)
+                .map_err(|e| e.to_string())
+                .and_then(|img| {
+                    let png = raw_to_png(&img)?;
+                    Ok((stamp_or_log_time(&img.header, m), "png", png))
+                }),
         };
         let (stamp, ext, bytes) = match decoded {
             Ok(x) => x,
@@ -275,20 +291,26 @@ impl State<'_> {
             _ => None,
         };
         let gnss_fix = match (quality, position) {
-            (Some(quality), Some(position)) => Some(GnssFix {
-                position,
-                quality,
-                hdop: None,
-                num_sats: None,
-            }),
+            (Some(quality), Some(position)) => {
+                self.in_outage = false;
+                Some(GnssFix {
+                    position,
+                    quality,
+                    hdop: None,
+                    num_sats: None,
+                })
+            }
             (None, _) => {
-                self.report.warn(format!(
-                    "{}: record {}: topic {}: NavSatFix status {} (no fix): an epoch without fix",
-                    self.file.display(),
-                    m.record,
-                    m.topic,
-                    fix.status
-                ));
+                if !self.in_outage {
+                    self.report.warn(format!(
+                        "{}: record {}: topic {}: NavSatFix status {} (no fix): epochs without fix from here to the next fix",
+                        self.file.display(),
+                        m.record,
+                        m.topic,
+                        fix.status
+                    ));
+                }
+                self.in_outage = true;
                 None
             }
             (Some(_), None) => {
@@ -335,7 +357,9 @@ fn compressed_extension(format: &str, data: &[u8]) -> Result<&'static str, Strin
     } else if f.contains("tiff") || data.starts_with(b"II*\0") || data.starts_with(b"MM\0*") {
         Ok("tiff")
     } else {
-        Err(format!("compressed image format `{format}` is not JPEG, PNG or TIFF"))
+        Err(format!(
+            "compressed image format `{format}` is not JPEG, PNG or TIFF"
+        ))
     }
 }
 
@@ -344,7 +368,13 @@ fn compressed_extension(format: &str, data: &[u8]) -> Result<&'static str, Strin
 fn raw_to_png(img: &ros_decode::RawImage<'_>) -> Result<Vec<u8>, String> {
     let (color, depth, channels, bytes, swap_rb) = match img.encoding {
         "mono8" | "8UC1" => (png::ColorType::Grayscale, png::BitDepth::Eight, 1, 1, false),
-        "mono16" | "16UC1" => (png::ColorType::Grayscale, png::BitDepth::Sixteen, 1, 2, false),
+        "mono16" | "16UC1" => (
+            png::ColorType::Grayscale,
+            png::BitDepth::Sixteen,
+            1,
+            2,
+            false,
+        ),
         "rgb8" => (png::ColorType::Rgb, png::BitDepth::Eight, 3, 1, false),
         "bgr8" => (png::ColorType::Rgb, png::BitDepth::Eight, 3, 1, true),
         "rgba8" => (png::ColorType::Rgba, png::BitDepth::Eight, 4, 1, false),
@@ -387,7 +417,9 @@ fn raw_to_png(img: &ros_decode::RawImage<'_>) -> Result<Vec<u8>, String> {
     encoder.set_depth(depth);
     encoder.set_compression(png::Compression::Fast);
     let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
-    writer.write_image_data(&pixels).map_err(|e| e.to_string())?;
+    writer
+        .write_image_data(&pixels)
+        .map_err(|e| e.to_string())?;
     writer.finish().map_err(|e| e.to_string())?;
     Ok(out)
 }
@@ -434,6 +466,7 @@ pub fn import_mcap(
         ignored_types: BTreeMap::new(),
         cameras: HashMap::new(),
         error: None,
+        in_outage: false,
     };
     let mcap = read_mcap_file(file, &mut |m| state.message(m))?;
     if let Some(e) = state.error.take() {
@@ -450,12 +483,8 @@ pub fn import_mcap(
         ));
     }
     let mut content = std::mem::take(&mut state.content);
-    content
-        .gnss
-        .sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
-    content
-        .navsat
-        .sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
+    content.gnss.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
+    content.navsat.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
     content.imu.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
     let tolerance_ns = (options.stamp_tolerance_s * 1e9).round() as i64;
     content.frames = assemble_frames(std::mem::take(&mut state.images), tolerance_ns);
@@ -508,7 +537,10 @@ mod tests {
         let mut buf = vec![0; reader.output_buffer_size()];
         reader.next_frame(&mut buf).unwrap();
         assert_eq!(&buf[..6], &[3, 2, 1, 6, 5, 4]);
-        let short = ros_decode::RawImage { data: &data[..5], ..img };
+        let short = ros_decode::RawImage {
+            data: &data[..5],
+            ..img
+        };
         assert!(raw_to_png(&short).unwrap_err().contains("too few"));
     }
 }

@@ -169,7 +169,11 @@ pub fn read_mcap_file(
         path: path.to_path_buf(),
         source,
     })?;
-    read_mcap(path, std::io::BufReader::with_capacity(1 << 20, file), on_message)
+    read_mcap(
+        path,
+        std::io::BufReader::with_capacity(1 << 20, file),
+        on_message,
+    )
 }
 
 /// Reads MCAP data from `input` (named `path` in messages); see [`read_mcap_file`].
@@ -239,12 +243,22 @@ pub fn read_mcap(
                 summary.records += 1;
                 match mcap::parse_record(opcode, data) {
                     Ok(Record::Chunk { header, data }) => {
-                        read_chunk(record, header, &data, &mut channels, &mut summary, on_message);
+                        read_chunk(
+                            record,
+                            header,
+                            &data,
+                            &mut channels,
+                            &mut summary,
+                            on_message,
+                        );
                     }
                     Ok(rec) => {
                         handle(record, &rec, &mut channels, &mut summary, on_message);
                     }
-                    Err(e) => summary.problem(record, format!("record (opcode 0x{opcode:02x}): {e}; skipped")),
+                    Err(e) => summary.problem(
+                        record,
+                        format!("record (opcode 0x{opcode:02x}): {e}; skipped"),
+                    ),
                 }
             }
         }
@@ -400,7 +414,10 @@ mod tests {
     fn read(bytes: &[u8]) -> (Vec<u64>, McapReadSummary) {
         let mut times = Vec::new();
         let s = read_mcap(Path::new("x.mcap"), bytes, &mut |m| {
-            assert_eq!((m.topic, m.schema, m.encoding), ("/t", "std_msgs/msg/String", "cdr"));
+            assert_eq!(
+                (m.topic, m.schema, m.encoding),
+                ("/t", "std_msgs/msg/String", "cdr")
+            );
             times.push(m.log_time);
         })
         .unwrap();
@@ -409,10 +426,17 @@ mod tests {
 
     #[test]
     fn reads_every_message_of_a_whole_file() {
-        for c in [None, Some(mcap::Compression::Zstd), Some(mcap::Compression::Lz4)] {
+        for c in [
+            None,
+            Some(mcap::Compression::Zstd),
+            Some(mcap::Compression::Lz4),
+        ] {
             let (times, s) = read(&sample(50, c));
             assert_eq!(times, (0..50).collect::<Vec<_>>());
-            assert!(s.problems.is_empty() && !s.truncated && s.chunks > 5, "{s:?}");
+            assert!(
+                s.problems.is_empty() && !s.truncated && s.chunks > 5,
+                "{s:?}"
+            );
         }
     }
 
@@ -424,7 +448,11 @@ mod tests {
         assert!(!times.is_empty() && times.len() < 50);
         assert_eq!(times, (0..times.len() as u64).collect::<Vec<_>>());
         assert!(s.truncated);
-        assert!(s.messages()[0].starts_with("x.mcap: record "), "{:?}", s.messages());
+        assert!(
+            s.messages()[0].starts_with("x.mcap: record "),
+            "{:?}",
+            s.messages()
+        );
     }
 
     #[test]

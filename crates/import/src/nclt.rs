@@ -55,7 +55,11 @@ pub struct GroundTruthRow {
 
 /// Reads NCLT ground truth; bad rows are warnings (naming file and line), NaN rows are
 /// skipped silently (counted in `report.skipped`).
-pub fn read_ground_truth(path: &Path, text: &str, report: &mut ImportReport) -> Vec<GroundTruthRow> {
+pub fn read_ground_truth(
+    path: &Path,
+    text: &str,
+    report: &mut ImportReport,
+) -> Vec<GroundTruthRow> {
     let mut out: Vec<GroundTruthRow> = Vec::new();
     for (n, line) in text.lines().enumerate() {
         let line = line.trim();
@@ -65,7 +69,10 @@ pub fn read_ground_truth(path: &Path, text: &str, report: &mut ImportReport) -> 
         let fields: Vec<&str> = line.split(',').map(str::trim).collect();
         let parsed = (|| -> Result<Option<GroundTruthRow>, String> {
             if fields.len() < 7 {
-                return Err(format!("{} fields, expected 7 (utime,x,y,z,roll,pitch,yaw)", fields.len()));
+                return Err(format!(
+                    "{} fields, expected 7 (utime,x,y,z,roll,pitch,yaw)",
+                    fields.len()
+                ));
             }
             let utime: i64 = fields[0]
                 .parse::<f64>()
@@ -92,7 +99,11 @@ pub fn read_ground_truth(path: &Path, text: &str, report: &mut ImportReport) -> 
             Ok(Some(row)) if out.last().is_none_or(|p| p.utime < row.utime) => out.push(row),
             Ok(Some(_)) => {
                 report.skipped += 1;
-                report.warn(format!("{}:{}: time does not increase; skipped", path.display(), n + 1));
+                report.warn(format!(
+                    "{}:{}: time does not increase; skipped",
+                    path.display(),
+                    n + 1
+                ));
             }
             Ok(None) => report.skipped += 1,
             Err(e) => {
@@ -135,19 +146,30 @@ pub fn enu_from_rig_of_rpy(rpy: [f64; 3]) -> UnitQuaternion<f64> {
 
 /// The truth of each frame, interpolated in the ground truth (linear in position, slerp in
 /// attitude).
-pub fn truth_at_frames(frames: &[Frame], gt: &[GroundTruthRow], origin_alt_m: f64) -> Vec<TruthRecord> {
+pub fn truth_at_frames(
+    frames: &[Frame],
+    gt: &[GroundTruthRow],
+    origin_alt_m: f64,
+) -> Vec<TruthRecord> {
     let mut out = Vec::new();
     for f in frames {
         let t_us = f.time_s * 1e6;
         let k = gt.partition_point(|r| (r.utime as f64) <= t_us);
-        let (Some(a), Some(b)) = (k.checked_sub(1).and_then(|i| gt.get(i)), gt.get(k).or(gt.get(k.wrapping_sub(1)))) else {
+        let (Some(a), Some(b)) = (
+            k.checked_sub(1).and_then(|i| gt.get(i)),
+            gt.get(k).or(gt.get(k.wrapping_sub(1))),
+        ) else {
             continue;
         };
         let (ta, tb) = (a.utime as f64, b.utime as f64);
         if (t_us - ta) * 1e-6 > MAX_TRUTH_GAP_S || (tb - t_us) * 1e-6 > MAX_TRUTH_GAP_S {
             continue;
         }
-        let w = if tb > ta { ((t_us - ta) / (tb - ta)).clamp(0.0, 1.0) } else { 0.0 };
+        let w = if tb > ta {
+            ((t_us - ta) / (tb - ta)).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
         let ned = [0, 1, 2].map(|i| a.ned_m[i] + w * (b.ned_m[i] - a.ned_m[i]));
         let qa = enu_from_rig_of_rpy(a.rpy);
         let qb = enu_from_rig_of_rpy(b.rpy);
@@ -184,7 +206,9 @@ fn find(dir: &Path, depth: usize, want: &dyn Fn(&str, bool) -> bool, found: &mut
     paths.sort();
     for p in paths {
         let is_dir = p.is_dir();
-        if p.file_name().is_some_and(|n| want(&n.to_string_lossy(), is_dir)) {
+        if p.file_name()
+            .is_some_and(|n| want(&n.to_string_lossy(), is_dir))
+        {
             found.push(p.clone());
         }
         if is_dir && depth > 0 {
@@ -193,7 +217,12 @@ fn find(dir: &Path, depth: usize, want: &dyn Fn(&str, bool) -> bool, found: &mut
     }
 }
 
-fn find_one(session: &Path, want: &dyn Fn(&str, bool) -> bool, report: &mut ImportReport, what: &str) -> Option<PathBuf> {
+fn find_one(
+    session: &Path,
+    want: &dyn Fn(&str, bool) -> bool,
+    report: &mut ImportReport,
+    what: &str,
+) -> Option<PathBuf> {
     let mut found = Vec::new();
     find(session, SEARCH_DEPTH, want, &mut found);
     if found.len() > 1 {
@@ -212,16 +241,37 @@ fn find_one(session: &Path, want: &dyn Fn(&str, bool) -> bool, report: &mut Impo
 /// # Errors
 /// [`ImportError`] when there is no `lb3` folder, a file cannot be read, or a drive file
 /// cannot be written.
-pub fn import_nclt(session: &Path, out: &Path, options: &NcltImportOptions) -> Result<(Manifest, ImportReport), ImportError> {
+pub fn import_nclt(
+    session: &Path,
+    out: &Path,
+    options: &NcltImportOptions,
+) -> Result<(Manifest, ImportReport), ImportError> {
     let mut report = ImportReport::default();
-    let lb3 = find_one(session, &|n, dir| dir && n == "lb3", &mut report, "lb3 folders").ok_or_else(|| {
-        ImportError::Input(format!("{}: no `lb3` folder (with Cam0…Cam5) found", session.display()))
+    let lb3 = find_one(
+        session,
+        &|n, dir| dir && n == "lb3",
+        &mut report,
+        "lb3 folders",
+    )
+    .ok_or_else(|| {
+        ImportError::Input(format!(
+            "{}: no `lb3` folder (with Cam0…Cam5) found",
+            session.display()
+        ))
     })?;
     let images = crate::folders::scan_folders(&lb3, &mut report)?;
     let frames = assemble_frames(images, (options.stamp_tolerance_s * 1e9).round() as i64);
-    let gps = find_one(session, &|n, dir| !dir && n == "gps.csv", &mut report, "gps.csv files");
+    let gps = find_one(
+        session,
+        &|n, dir| !dir && n == "gps.csv",
+        &mut report,
+        "gps.csv files",
+    );
     if gps.is_none() {
-        report.warn(format!("{}: no gps.csv: the drive has no satellite GPS", session.display()));
+        report.warn(format!(
+            "{}: no gps.csv: the drive has no satellite GPS",
+            session.display()
+        ));
     }
     let truth = match find_one(
         session,
@@ -230,7 +280,10 @@ pub fn import_nclt(session: &Path, out: &Path, options: &NcltImportOptions) -> R
         "ground-truth files",
     ) {
         Some(path) => {
-            let text = std::fs::read_to_string(&path).map_err(|source| ImportError::Read { path: path.clone(), source })?;
+            let text = std::fs::read_to_string(&path).map_err(|source| ImportError::Read {
+                path: path.clone(),
+                source,
+            })?;
             let gt = read_ground_truth(&path, &text, &mut report);
             truth_at_frames(&frames, &gt, options.origin_alt_m)
         }
@@ -242,11 +295,26 @@ pub fn import_nclt(session: &Path, out: &Path, options: &NcltImportOptions) -> R
         truth,
         ..DriveContent::default()
     };
-    let manifest = write_drive(out, &options.rig, options.landmarks.as_deref(), &content, &mut report)?;
-    if let Some(rtk) = find_one(session, &|n, dir| !dir && n == "gps_rtk.csv", &mut report, "gps_rtk.csv files") {
-        let bytes = std::fs::read(&rtk).map_err(|source| ImportError::Read { path: rtk.clone(), source })?;
+    let manifest = write_drive(
+        out,
+        &options.rig,
+        options.landmarks.as_deref(),
+        &content,
+        &mut report,
+    )?;
+    if let Some(rtk) = find_one(
+        session,
+        &|n, dir| !dir && n == "gps_rtk.csv",
+        &mut report,
+        "gps_rtk.csv files",
+    ) {
+        let bytes = std::fs::read(&rtk).map_err(|source| ImportError::Read {
+            path: rtk.clone(),
+            source,
+        })?;
         let dest = out.join("gps_rtk.csv");
-        vgps_io::write_atomic(&dest, &bytes).map_err(|source| ImportError::Write { path: dest, source })?;
+        vgps_io::write_atomic(&dest, &bytes)
+            .map_err(|source| ImportError::Write { path: dest, source })?;
     }
     Ok((manifest, report))
 }
@@ -265,7 +333,10 @@ mod tests {
         let n = geodetic_of_local([100.0, 0.0, 0.0], 0.0).unwrap();
         let frame = vgps_geometry::geo::LocalFrame::new(g);
         let enu = frame.to_enu(&n);
-        assert!((enu.y - 100.0).abs() < 0.05 && enu.x.abs() < 1e-6, "{enu:?}");
+        assert!(
+            (enu.y - 100.0).abs() < 0.05 && enu.x.abs() < 1e-6,
+            "{enu:?}"
+        );
     }
 
     #[test]

@@ -438,7 +438,10 @@ mod tests {
         big.extend(u32::MAX.to_le_bytes());
         assert!(matches!(
             compressed_image(&big),
-            Err(CdrError::TooLong { field: "header.frame_id", .. })
+            Err(CdrError::TooLong {
+                field: "header.frame_id",
+                ..
+            })
         ));
     }
 

@@ -32,10 +32,13 @@ fn pixels(bytes: &[u8]) -> Vec<u8> {
 fn the_recording_comes_back_as_the_drive_it_was_made_from() {
     let out = tempfile::tempdir().unwrap();
     let imported = import_mcap(&data().join("run.mcap"), out.path(), &options()).unwrap();
-    // The only warnings: the GPS outages (status -1), one per epoch, naming the record.
+    // The only warnings: the GPS outages (status -1), one per outage, naming the record.
     let w = &imported.report.warnings;
-    assert_eq!(w.len(), 3, "{w:?}");
-    assert!(w.iter().all(|w| w.contains("run.mcap: record ") && w.contains("status -1")));
+    assert!(!w.is_empty() && w.len() < 3, "{w:?}");
+    assert!(
+        w.iter()
+            .all(|w| w.contains("run.mcap: record ") && w.contains("status -1"))
+    );
     assert_eq!(
         imported.ignored_types.get("sensor_msgs/msg/CameraInfo"),
         Some(&1)
@@ -56,12 +59,17 @@ fn the_recording_comes_back_as_the_drive_it_was_made_from() {
                 continue;
             };
             let got = std::fs::read(out.path().join(name)).unwrap();
-            let want = std::fs::read(data().join("source").join(s.images[k].as_ref().unwrap()))
-                .unwrap();
+            let want =
+                std::fs::read(data().join("source").join(s.images[k].as_ref().unwrap())).unwrap();
             if k < 5 {
                 assert_eq!(got, want, "frame {} camera {k}: the PNG as it was", f.frame);
             } else {
-                assert_eq!(pixels(&got), pixels(&want), "frame {} raw camera 5", f.frame);
+                assert_eq!(
+                    pixels(&got),
+                    pixels(&want),
+                    "frame {} raw camera 5",
+                    f.frame
+                );
             }
         }
     }
@@ -96,8 +104,10 @@ fn bad_messages_are_reported_and_the_rest_imported() {
     let has = |s: &str| assert!(w.contains(s), "no `{s}` in:\n{w}");
     has("bad.mcap: topic /front/image/compressed: image topic without a camera number");
     has("bad.mcap: topic /gps/json: message encoding `json` is not supported");
-    has("NavSatFix status -1 (no fix): an epoch without fix");
-    has("topic /ladybug/cam1/image/compressed: image: field `header.stamp.nanosec`: message ends at byte 8");
+    has("NavSatFix status -1 (no fix): epochs without fix from here");
+    has(
+        "topic /ladybug/cam1/image/compressed: image: field `header.stamp.nanosec`: message ends at byte 8",
+    );
     assert!(w.contains("bad.mcap: record "), "{w}");
     let drive = Drive::open(out.path(), Strictness::Strict).unwrap();
     assert_eq!(drive.frames().len(), 1);
@@ -122,7 +132,11 @@ fn a_topic_mapping_file_decides_the_cameras() {
     )));
     std::fs::write(&map, "topic,camera\n/a,9\n").unwrap();
     let e = vgps_import::mcap_import::read_topic_map(&map).unwrap_err();
-    assert!(e.to_string().ends_with("topics.csv:2: field `camera`: `9` is not a camera index 0–5"), "{e}");
+    assert!(
+        e.to_string()
+            .ends_with("topics.csv:2: field `camera`: `9` is not a camera index 0–5"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -135,9 +149,16 @@ fn a_cut_recording_gives_what_is_intact() {
     let imported = import_mcap(&cut, &out, &options()).unwrap();
     assert!(imported.mcap.truncated);
     let w = imported.report.warnings.join("\n");
-    assert!(w.contains("cut.mcap: record ") && w.contains("reading stopped"), "{w}");
+    assert!(
+        w.contains("cut.mcap: record ") && w.contains("reading stopped"),
+        "{w}"
+    );
     let drive = Drive::open(&out, Strictness::Strict).unwrap();
-    assert!((1..5).contains(&drive.frames().len()), "{}", drive.frames().len());
+    assert!(
+        (1..5).contains(&drive.frames().len()),
+        "{}",
+        drive.frames().len()
+    );
 }
 
 #[test]

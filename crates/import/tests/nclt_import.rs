@@ -29,8 +29,11 @@ fn session(root: &Path) {
     let sensors = root.join("sensor_data/2012-11-16");
     std::fs::create_dir_all(&sensors).unwrap();
     std::fs::copy(data().join("nclt/gps.csv"), sensors.join("gps.csv")).unwrap();
-    std::fs::write(sensors.join("gps_rtk.csv"), "1353099827000000,3,9,0.7381,-1.4609,270,0,0\n")
-        .unwrap();
+    std::fs::write(
+        sensors.join("gps_rtk.csv"),
+        "1353099827000000,3,9,0.7381,-1.4609,270,0,0\n",
+    )
+    .unwrap();
     let mut gt = String::from("1353099826400000,nan,nan,nan,nan,nan,nan\n");
     for k in 0..40 {
         let t = T0_US - 500_000 + k * 100_000;
@@ -63,7 +66,10 @@ fn an_nclt_session_becomes_a_drive() {
     assert_eq!(report.images, 59);
     assert_eq!(report.frames_missing_cameras, 1);
     let w = report.warnings.join("\n");
-    assert!(w.contains("groundtruth_2012-11-16.csv:23: 3 fields, expected 7"), "{w}");
+    assert!(
+        w.contains("groundtruth_2012-11-16.csv:23: 3 fields, expected 7"),
+        "{w}"
+    );
     assert!(out.join("gps_rtk.csv").is_file());
     let drive = Drive::open(&out, Strictness::Strict).unwrap();
     let frames = drive.frames();

@@ -754,11 +754,12 @@ pub fn ros_cdr(data: &[u8]) {
 /// handed to the CDR decoders: never a panic; the counts agree with the messages seen.
 pub fn mcap_read(data: &[u8]) {
     let mut seen = 0u64;
-    let result = vgps_import::mcap_read::read_mcap(std::path::Path::new("x.mcap"), data, &mut |m| {
-        seen += 1;
-        assert!(m.data.len() <= data.len().max(1 << 20));
-        ros_cdr(m.data);
-    });
+    let result =
+        vgps_import::mcap_read::read_mcap(std::path::Path::new("x.mcap"), data, &mut |m| {
+            seen += 1;
+            assert!(m.data.len() <= data.len().max(1 << 20));
+            ros_cdr(m.data);
+        });
     if let Ok(summary) = result {
         assert_eq!(summary.messages, seen);
         assert!(summary.bytes <= data.len() as u64);
