@@ -12,7 +12,7 @@
 //! digits is seconds, 12–14 milliseconds, 15–17 microseconds (NCLT's `utime`), 18–19
 //! nanoseconds. Images are `.png`, `.jpg`/`.jpeg`, `.tif`/`.tiff` or `.bmp`; an image
 //! without a usable time is skipped with a warning. Frames are assembled by stamp
-//! ([`assemble_frames`]); images are referenced by their absolute paths, not copied.
+//! ([`crate::drive_out::assemble_frames`]); images are referenced by their absolute paths, not copied.
 
 use crate::drive_out::{ImportError, ImportReport, StampedImage};
 use std::collections::HashMap;
