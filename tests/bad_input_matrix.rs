@@ -165,6 +165,77 @@ fn crc32(bytes: &[u8]) -> u32 {
 const L: &str = "id,lat,lon,alt\n";
 const R: &str = "id,lat,lon,alt,de,dn,du\n";
 
+/// The committed MCAP test files (`tests/data/mcap`, written by `make_mcap.py`).
+fn mcap_data() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mcap")
+}
+
+fn copy_mcap(t: &Path) {
+    for f in ["run.mcap", "bad.mcap", "small_rig.json"] {
+        std::fs::copy(mcap_data().join(f), t.join(f)).expect("copy");
+    }
+}
+
+fn cut_mcap(t: &Path) {
+    copy_mcap(t);
+    let bytes = std::fs::read(t.join("run.mcap")).expect("read");
+    write(t, "cut.mcap", &bytes[..bytes.len() * 6 / 10]);
+}
+
+fn crc_mcap(t: &Path) {
+    copy_mcap(t);
+    let mut bytes = std::fs::read(t.join("bad.mcap")).expect("read");
+    let second_png = bytes
+        .windows(4)
+        .enumerate()
+        .filter(|(_, w)| *w == b"\x89PNG")
+        .nth(1)
+        .expect("two PNGs")
+        .0;
+    bytes[second_png + 100] ^= 0x55;
+    write(t, "crc.mcap", bytes);
+}
+
+fn garbage_mcap(t: &Path) {
+    copy_mcap(t);
+    write(t, "x.mcap", garbage());
+}
+
+fn bad_topic_map(t: &Path) {
+    copy_mcap(t);
+    write(t, "topics.csv", "topic,camera\n/a,x\n");
+}
+
+fn nclt_without_lb3(t: &Path) {
+    copy_mcap(t);
+    std::fs::create_dir_all(t.join("session/sensor_data")).expect("mkdir");
+}
+
+fn nclt_bad_ground_truth(t: &Path) {
+    copy_mcap(t);
+    let cam = t.join("session/lb3/Cam0");
+    std::fs::create_dir_all(&cam).expect("mkdir");
+    write(&cam, "1353099827000000.tiff", b"");
+    write(
+        &t.join("session"),
+        "groundtruth_2012-11-16.csv",
+        "1353099827000000,1,2\n",
+    );
+}
+
+fn folders_without_cameras(t: &Path) {
+    copy_mcap(t);
+    std::fs::create_dir_all(t.join("root/notes")).expect("mkdir");
+}
+
+fn folders_image_without_time(t: &Path) {
+    copy_mcap(t);
+    let cam = t.join("root/cam0");
+    std::fs::create_dir_all(&cam).expect("mkdir");
+    write(&cam, "1700000000.png", b"");
+    write(&cam, "frame.png", b"");
+}
+
 fn rows() -> Vec<Row> {
     vec![
         // ---- vgps locate: landmarks ----
@@ -1409,6 +1480,171 @@ fn rows() -> Vec<Row> {
             args: &["map", "{t}/d", "--min-coverage", "2"],
             code: 2,
             stderr: &["--min-coverage", "`2`"],
+        },
+        // ---- vgps import (docs/import.md) ----
+        Row {
+            name: "import mcap: not an MCAP file",
+            setup: garbage_mcap,
+            args: &[
+                "import",
+                "mcap",
+                "{t}/x.mcap",
+                "--rig",
+                "{t}/small_rig.json",
+                "--out",
+                "{t}/d",
+            ],
+            code: 2,
+            stderr: &["{t}/x.mcap", "not an MCAP file"],
+        },
+        Row {
+            name: "import mcap: an unreadable calibration",
+            setup: copy_mcap,
+            args: &[
+                "import",
+                "mcap",
+                "{t}/run.mcap",
+                "--rig",
+                "{t}/missing.json",
+                "--out",
+                "{t}/d",
+            ],
+            code: 2,
+            stderr: &["{t}/missing.json", "cannot read"],
+        },
+        Row {
+            name: "import mcap: a recording cut by a crash",
+            setup: cut_mcap,
+            args: &[
+                "import",
+                "mcap",
+                "{t}/cut.mcap",
+                "--rig",
+                "{t}/small_rig.json",
+                "--out",
+                "{t}/d",
+            ],
+            code: 0,
+            stderr: &["{t}/cut.mcap: record ", "reading stopped"],
+        },
+        Row {
+            name: "import mcap: a chunk with a bad CRC",
+            setup: crc_mcap,
+            args: &[
+                "import",
+                "mcap",
+                "{t}/crc.mcap",
+                "--rig",
+                "{t}/small_rig.json",
+                "--out",
+                "{t}/d",
+            ],
+            code: 0,
+            stderr: &["{t}/crc.mcap: record ", "CRC"],
+        },
+        Row {
+            name: "import mcap: json encoding, unmapped topic, status -1, short CDR",
+            setup: copy_mcap,
+            args: &[
+                "import",
+                "mcap",
+                "{t}/bad.mcap",
+                "--rig",
+                "{t}/small_rig.json",
+                "--out",
+                "{t}/d",
+            ],
+            code: 0,
+            stderr: &[
+                "{t}/bad.mcap: topic /gps/json: message encoding `json` is not supported",
+                "{t}/bad.mcap: topic /front/image/compressed: image topic without a camera number",
+                "NavSatFix status -1 (no fix)",
+                "topic /ladybug/cam1/image/compressed: image: field `header.stamp.nanosec`",
+            ],
+        },
+        Row {
+            name: "import mcap: a bad topic mapping row",
+            setup: bad_topic_map,
+            args: &[
+                "import",
+                "mcap",
+                "{t}/bad.mcap",
+                "--rig",
+                "{t}/small_rig.json",
+                "--topics",
+                "{t}/topics.csv",
+                "--out",
+                "{t}/d",
+            ],
+            code: 2,
+            stderr: &["{t}/topics.csv:2", "field `camera`"],
+        },
+        Row {
+            name: "replay run.mcap without --rig",
+            setup: copy_mcap,
+            args: &["replay", "{t}/run.mcap"],
+            code: 2,
+            stderr: &["{t}/run.mcap", "--rig"],
+        },
+        Row {
+            name: "import nclt: no lb3 folder",
+            setup: nclt_without_lb3,
+            args: &[
+                "import",
+                "nclt",
+                "{t}/session",
+                "--rig",
+                "{t}/small_rig.json",
+                "--out",
+                "{t}/d",
+            ],
+            code: 2,
+            stderr: &["{t}/session", "no `lb3` folder"],
+        },
+        Row {
+            name: "import nclt: a bad ground-truth row",
+            setup: nclt_bad_ground_truth,
+            args: &[
+                "import",
+                "nclt",
+                "{t}/session",
+                "--rig",
+                "{t}/small_rig.json",
+                "--out",
+                "{t}/d",
+            ],
+            code: 0,
+            stderr: &["groundtruth_2012-11-16.csv:1", "3 fields, expected 7"],
+        },
+        Row {
+            name: "import folders: no camera folder",
+            setup: folders_without_cameras,
+            args: &[
+                "import",
+                "folders",
+                "{t}/root",
+                "--rig",
+                "{t}/small_rig.json",
+                "--out",
+                "{t}/d",
+            ],
+            code: 2,
+            stderr: &["{t}/root", "no camera folder"],
+        },
+        Row {
+            name: "import folders: an image without a time",
+            setup: folders_image_without_time,
+            args: &[
+                "import",
+                "folders",
+                "{t}/root",
+                "--rig",
+                "{t}/small_rig.json",
+                "--out",
+                "{t}/d",
+            ],
+            code: 0,
+            stderr: &["frame.png: no time in the file name"],
         },
         // ---- vgps demo ----
         Row {

@@ -48,6 +48,8 @@ pub enum Command {
     Map(super::map::MapArgs),
     /// Landmark inventories: import GIS points (GeoJSON, CSV lat/lon) into landmarks.csv.
     Landmarks(super::landmarks::LandmarksArgs),
+    /// Logs of other tools into a drive folder: rosbag2 MCAP, NCLT sessions, image folders.
+    Import(super::import::ImportArgs),
 }
 
 /// Arguments of `vgps locate`.

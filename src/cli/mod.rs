@@ -17,6 +17,7 @@ pub mod detect;
 pub mod gnss_input;
 pub mod image_size;
 pub mod landmarks;
+pub mod import;
 pub mod locate;
 pub mod map;
 pub mod replay;
@@ -105,6 +106,7 @@ where
         Settings::Detect(s) => detect::run(&s, out, err),
         Settings::Map(s) => map::run(&s, out, err),
         Settings::Landmarks(a) => landmarks::run(&a, out, err),
+        Settings::Import(a) => import::run(&a, out, err),
         // Handled above: `vgps calib` reports on its own.
         Settings::Calib(_) => Ok(()),
     });

@@ -39,7 +39,8 @@ pub enum OutputFormat {
 /// Arguments of `vgps replay`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ReplayArgs {
-    /// The drive directory (with `drive.json`; see docs/drive-format.md).
+    /// The drive directory (with `drive.json`; see docs/drive-format.md), or a rosbag2
+    /// recording `run.mcap` (with `--rig`; see docs/import.md).
     pub drive: PathBuf,
     /// Output directory (default: `DRIVE/replay`); created if missing, files replaced
     /// atomically.
@@ -76,6 +77,9 @@ pub struct ReplayArgs {
     /// Satellite GPS from another file.
     #[command(flatten)]
     pub gnss: super::gnss_input::GnssInputArgs,
+    /// An MCAP recording as DRIVE (imported into a temporary drive, removed afterwards).
+    #[command(flatten)]
+    pub mcap: super::import::McapInputArgs,
 }
 
 /// The detections of one frame, or why there are none; `unusable_images` counts the
@@ -114,7 +118,20 @@ pub fn run(
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> Result<(), CliError> {
-    let mut drive = Drive::open(&settings.drive, settings.strictness)
+    // An MCAP recording is imported into a temporary drive, removed when `imported` drops.
+    let imported = if super::import::is_mcap(&settings.drive) {
+        Some(super::import::mcap_to_temp_drive(
+            &settings.drive,
+            &settings.mcap,
+            err,
+        )?)
+    } else {
+        None
+    };
+    let drive_dir = imported
+        .as_ref()
+        .map_or(settings.drive.clone(), |d| d.path().to_path_buf());
+    let mut drive = Drive::open(&drive_dir, settings.strictness)
         .map_err(|e| CliError::Calibration(e.to_string()))?;
     if (settings.from_images
         || drive.manifest().detections.is_none()

@@ -108,6 +108,8 @@ pub struct ReplaySettings {
     pub image_size: Option<(u32, u32)>,
     /// Satellite GPS from another file.
     pub gnss: GnssInputArgs,
+    /// The options of an MCAP recording given as the drive.
+    pub mcap: super::import::McapInputArgs,
 }
 
 /// Validated settings of `vgps detect`.
@@ -178,6 +180,8 @@ pub enum Settings {
     Detect(DetectSettings),
     /// `vgps map`.
     Map(MapSettings),
+    /// `vgps import …` (validated by its value parsers).
+    Import(super::import::ImportArgs),
 }
 
 /// The strictness of reading a drive's manifest for the `--strict` flag (the one place
@@ -234,6 +238,7 @@ impl TryFrom<Cli> for Settings {
                 drive: a.drive,
             }),
             Command::Map(a) => Settings::Map(MapSettings::from(a)),
+            Command::Import(a) => Settings::Import(a),
         })
     }
 }
@@ -271,7 +276,13 @@ impl TryFrom<ReplayArgs> for ReplaySettings {
             )));
         }
         Ok(Self {
-            out_dir: a.out.unwrap_or_else(|| a.drive.join("replay")),
+            out_dir: a.out.unwrap_or_else(|| {
+                if super::import::is_mcap(&a.drive) {
+                    a.drive.with_extension("replay")
+                } else {
+                    a.drive.join("replay")
+                }
+            }),
             drive: a.drive,
             threads: thread_count(a.threads),
             quiet: a.quiet,
@@ -283,6 +294,7 @@ impl TryFrom<ReplayArgs> for ReplaySettings {
             from_images: a.from_images,
             image_size: a.image_size,
             gnss: a.gnss,
+            mcap: a.mcap,
         })
     }
 }

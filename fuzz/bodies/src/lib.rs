@@ -783,6 +783,42 @@ pub fn matcher(data: &[u8]) {
     }
 }
 
+/// Target `ros_cdr`: the CDR decoders of [`vgps_import::ros_decode`] (CompressedImage,
+/// Image, NavSatFix, Imu) on the same bytes: never a panic; a decoded message's data lies
+/// within the input and its strings within the limit.
+pub fn ros_cdr(data: &[u8]) {
+    use vgps_import::ros_decode::{self, MAX_STRING_BYTES};
+    if let Ok(m) = ros_decode::compressed_image(data) {
+        assert!(m.data.len() <= data.len() && m.format.len() <= MAX_STRING_BYTES);
+        let _ = m.header.stamp_ns();
+    }
+    if let Ok(m) = ros_decode::raw_image(data) {
+        assert!(m.data.len() <= data.len() && m.encoding.len() <= MAX_STRING_BYTES);
+    }
+    if let Ok(m) = ros_decode::nav_sat_fix(data) {
+        assert!(m.header.frame_id.len() <= MAX_STRING_BYTES);
+    }
+    let _ = ros_decode::imu(data);
+}
+
+/// Target `mcap_read`: [`vgps_import::mcap_read::read_mcap`] on raw bytes, every message
+/// handed to the CDR decoders ([`ros_cdr`]): never a panic; the counts agree with the
+/// messages seen.
+pub fn mcap_read(data: &[u8]) {
+    let mut seen = 0u64;
+    let result =
+        vgps_import::mcap_read::read_mcap(std::path::Path::new("x.mcap"), data, &mut |m| {
+            seen += 1;
+            // Within the input, or within one decompressed chunk.
+        assert!(m.data.len() as u64 <= vgps_import::mcap_read::MAX_CHUNK_BYTES);
+            ros_cdr(m.data);
+        });
+    if let Ok(summary) = result {
+        assert_eq!(summary.messages, seen);
+        assert!(summary.bytes <= data.len() as u64);
+    }
+}
+
 /// A target: its name and its body.
 pub type Target = (&'static str, fn(&[u8]));
 
@@ -806,6 +842,8 @@ pub const TARGETS: &[Target] = &[
     ("ubx", ubx),
     ("gis_landmarks", gis_landmarks),
     ("truth_formats", truth_formats),
+    ("ros_cdr", ros_cdr),
+    ("mcap_read", mcap_read),
     ("png_decode", png_decode),
     ("jpeg_decode", jpeg_decode),
     ("tiff_decode", tiff_decode),

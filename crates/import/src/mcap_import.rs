@@ -1,0 +1,546 @@
+//! A rosbag2 recording in MCAP into a drive folder.
+//!
+//! Read are `sensor_msgs/msg/CompressedImage` and `sensor_msgs/msg/Image` (one topic per
+//! camera), `sensor_msgs/msg/NavSatFix` (the satellite GPS) and `sensor_msgs/msg/Imu`;
+//! every other type (`CameraInfo`, `/tf`, …) is counted and ignored. Each image is written
+//! under `images/cam<k>/<stamp_ns>.<ext>` (a compressed image as it is, a raw image as PNG)
+//! and the images are grouped into frames by stamp ([`assemble_frames`]).
+//!
+//! # Cameras
+//! A topic's camera index comes from a mapping file (`topic,camera` CSV) when one is
+//! given; otherwise it is the last number in the topic name (`/ladybug/cam3/image/compressed`
+//! → 3, `/camera_0/image_raw` → 0). An image topic with no index is skipped with a warning.
+//!
+//! # Satellite GPS
+//! Each `NavSatFix` becomes an epoch of `gnss.nmea` at its header stamp: `status` −1 (no fix)
+//! an epoch without fix (a warning names the record where each outage starts), 0 GGA quality 1, 1 (SBAS) quality
+//! 2, 2 (GBAS, as ROS drivers report RTK) quality 4. Every field, status and covariance
+//! included, is also kept in `navsatfix.csv`; IMU samples go to `imu.csv`.
+
+use crate::drive_out::{
+    DriveContent, ImportError, ImportReport, ImuRow, NavSatRow, StampedImage, assemble_frames,
+    create_dir, seconds_of_ns, write_drive,
+};
+use crate::mcap_read::{McapMessage, McapReadSummary, read_mcap_file};
+use crate::ros_decode;
+use std::collections::{BTreeMap, HashMap, HashSet};
+use std::path::{Path, PathBuf};
+use vgps_geometry::geo::Geodetic;
+use vgps_replay::drive::{GnssFix, GnssRecord, MAX_IMAGE_COLUMNS, Manifest};
+
+/// Largest raw image accepted, pixels (100 megapixels).
+pub const MAX_RAW_PIXELS: u64 = 100_000_000;
+
+/// Options of an MCAP import.
+#[derive(Clone, Debug)]
+pub struct McapImportOptions {
+    /// The rig calibration.
+    pub rig: PathBuf,
+    /// The surveyed landmarks, if any (an empty table otherwise).
+    pub landmarks: Option<PathBuf>,
+    /// Topic → camera index, if given (else the naming rule).
+    pub topics: Option<BTreeMap<String, usize>>,
+    /// Largest spread of the stamps of one frame, seconds.
+    pub stamp_tolerance_s: f64,
+}
+
+/// Reads a topic mapping file: CSV `topic,camera` with a header; blank lines and lines
+/// starting with `#` are ignored.
+///
+/// # Errors
+/// [`ImportError`] naming the file and line of a bad row or a duplicated topic.
+pub fn read_topic_map(path: &Path) -> Result<BTreeMap<String, usize>, ImportError> {
+    let text = std::fs::read_to_string(path).map_err(|source| ImportError::Read {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let mut map = BTreeMap::new();
+    let mut header_seen = false;
+    for (n, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        if !header_seen {
+            header_seen = true;
+            if line.replace(' ', "") == "topic,camera" {
+                continue;
+            }
+        }
+        let bad = |why: String| ImportError::Input(format!("{}:{}: {why}", path.display(), n + 1));
+        let (topic, camera) = line
+            .split_once(',')
+            .ok_or_else(|| bad("expected `topic,camera`".into()))?;
+        let camera: usize = camera
+            .trim()
+            .parse()
+            .ok()
+            .filter(|&c| c < MAX_IMAGE_COLUMNS)
+            .ok_or_else(|| {
+                bad(format!(
+                    "field `camera`: `{}` is not a camera index 0–{}",
+                    camera.trim(),
+                    MAX_IMAGE_COLUMNS - 1
+                ))
+            })?;
+        if map.insert(topic.trim().to_string(), camera).is_some() {
+            return Err(bad(format!("topic `{}` is mapped twice", topic.trim())));
+        }
+    }
+    Ok(map)
+}
+
+/// The camera index of a topic by the naming rule: its last run of decimal digits.
+///
+/// # Example
+/// ```
+/// use vgps_import::mcap_import::camera_of_topic;
+/// assert_eq!(camera_of_topic("/ladybug/cam3/image/compressed"), Some(3));
+/// assert_eq!(camera_of_topic("/front/image_raw"), None);
+/// ```
+pub fn camera_of_topic(topic: &str) -> Option<usize> {
+    let end = topic.rfind(|c: char| c.is_ascii_digit())? + 1;
+    let start = topic[..end]
+        .rfind(|c: char| !c.is_ascii_digit())
+        .map_or(0, |i| i + 1);
+    topic[start..end].parse().ok()
+}
+
+/// Message types the import reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kind {
+    Compressed,
+    Raw,
+    NavSat,
+    Imu,
+}
+
+fn kind_of(schema: &str) -> Option<Kind> {
+    match schema.replace("/msg/", "/").as_str() {
+        "sensor_msgs/CompressedImage" => Some(Kind::Compressed),
+        "sensor_msgs/Image" => Some(Kind::Raw),
+        "sensor_msgs/NavSatFix" => Some(Kind::NavSat),
+        "sensor_msgs/Imu" => Some(Kind::Imu),
+        _ => None,
+    }
+}
+
+struct State<'o> {
+    out: PathBuf,
+    file: PathBuf,
+    options: &'o McapImportOptions,
+    images: Vec<StampedImage>,
+    names: HashSet<String>,
+    content: DriveContent,
+    report: ImportReport,
+    /// Topics skipped as a whole, with the reason, and their message count.
+    skipped_topics: BTreeMap<String, (String, u64)>,
+    ignored_types: BTreeMap<String, u64>,
+    cameras: HashMap<String, Option<usize>>,
+    error: Option<ImportError>,
+    /// Whether the last NavSatFix had no fix (one warning per outage, not per epoch).
+    in_outage: bool,
+}
+
+impl State<'_> {
+    fn warn_record(&mut self, m: &McapMessage<'_>, what: String) {
+        self.report.skipped += 1;
+        self.report.warn(format!(
+            "{}: record {}: topic {}: {what}",
+            self.file.display(),
+            m.record,
+            m.topic
+        ));
+    }
+
+    fn skip_topic(&mut self, topic: &str, reason: String) {
+        self.report.skipped += 1;
+        self.skipped_topics
+            .entry(topic.to_string())
+            .or_insert((reason, 0))
+            .1 += 1;
+    }
+
+    fn camera(&mut self, topic: &str) -> Option<usize> {
+        if let Some(c) = self.cameras.get(topic) {
+            return *c;
+        }
+        let c = match &self.options.topics {
+            Some(map) => map.get(topic).copied(),
+            None => camera_of_topic(topic).filter(|&c| c < MAX_IMAGE_COLUMNS),
+        };
+        self.cameras.insert(topic.to_string(), c);
+        c
+    }
+
+    fn message(&mut self, m: &McapMessage<'_>) {
+        if self.error.is_some() {
+            return;
+        }
+        let Some(kind) = kind_of(m.schema) else {
+            *self
+                .ignored_types
+                .entry(
+                    if m.schema.is_empty() {
+                        "(no schema)"
+                    } else {
+                        m.schema
+                    }
+                    .to_string(),
+                )
+                .or_insert(0) += 1;
+            return;
+        };
+        if m.encoding != "cdr" {
+            self.skip_topic(
+                m.topic,
+                format!(
+                    "message encoding `{}` is not supported (only `cdr`, as rosbag2 writes)",
+                    m.encoding
+                ),
+            );
+            return;
+        }
+        match kind {
+            Kind::Compressed | Kind::Raw => self.image(m, kind),
+            Kind::NavSat => self.navsat(m),
+            Kind::Imu => match ros_decode::imu(m.data) {
+                Ok(imu) => {
+                    let c = imu.orientation_covariance;
+                    self.content.imu.push(ImuRow {
+                        time_s: seconds_of_ns(stamp_or_log_time(&imu.header, m)),
+                        orientation: imu.orientation,
+                        orientation_variance: [c[0], c[4], c[8]],
+                        angular_velocity: imu.angular_velocity,
+                        linear_acceleration: imu.linear_acceleration,
+                    });
+                }
+                Err(e) => self.warn_record(m, format!("Imu: {e}; skipped")),
+            },
+        }
+    }
+
+    fn image(&mut self, m: &McapMessage<'_>, kind: Kind) {
+        let Some(camera) = self.camera(m.topic) else {
+            let why = match &self.options.topics {
+                Some(_) => "image topic not in the topic mapping file".to_string(),
+                None => {
+                    "image topic without a camera number in its name (give a topic mapping file)"
+                        .to_string()
+                }
+            };
+            self.skip_topic(m.topic, why);
+            return;
+        };
+        let decoded = match kind {
+            Kind::Compressed => ros_decode::compressed_image(m.data)
+                .map_err(|e| e.to_string())
+                .and_then(|img| {
+                    let ext = compressed_extension(img.format, img.data)?;
+                    Ok((stamp_or_log_time(&img.header, m), ext, img.data.to_vec()))
+                }),
+            _ => ros_decode::raw_image(m.data)
+                .map_err(|e| e.to_string())
+                .and_then(|img| {
+                    let png = raw_to_png(&img)?;
+                    Ok((stamp_or_log_time(&img.header, m), "png", png))
+                }),
+        };
+        let (stamp, ext, bytes) = match decoded {
+            Ok(x) => x,
+            Err(e) => return self.warn_record(m, format!("image: {e}; skipped")),
+        };
+        let mut name = format!("images/cam{camera}/{stamp}.{ext}");
+        let mut k = 1;
+        while self.names.contains(&name) {
+            name = format!("images/cam{camera}/{stamp}_{k}.{ext}");
+            k += 1;
+        }
+        let path = self.out.join(&name);
+        if let Some(dir) = path.parent()
+            && let Err(e) = create_dir(dir)
+        {
+            self.error = Some(e);
+            return;
+        }
+        if let Err(source) = vgps_io::write_atomic(&path, &bytes) {
+            self.error = Some(ImportError::Write { path, source });
+            return;
+        }
+        self.names.insert(name.clone());
+        self.images.push(StampedImage {
+            time_ns: stamp,
+            camera,
+            path: name,
+        });
+    }
+
+    fn navsat(&mut self, m: &McapMessage<'_>) {
+        let fix = match ros_decode::nav_sat_fix(m.data) {
+            Ok(f) => f,
+            Err(e) => return self.warn_record(m, format!("NavSatFix: {e}; skipped")),
+        };
+        let time_s = seconds_of_ns(stamp_or_log_time(&fix.header, m));
+        let position = Geodetic::try_new(fix.latitude, fix.longitude, fix.altitude)
+            .ok()
+            .filter(|_| fix.latitude.abs() <= 90.0 && fix.longitude.abs() <= 180.0);
+        let quality = match fix.status {
+            0 => Some(1),
+            1 => Some(2),
+            2 => Some(4),
+            _ => None,
+        };
+        let gnss_fix = match (quality, position) {
+            (Some(quality), Some(position)) => {
+                self.in_outage = false;
+                Some(GnssFix {
+                    position,
+                    quality,
+                    hdop: None,
+                    num_sats: None,
+                })
+            }
+            (None, _) => {
+                if !self.in_outage {
+                    self.report.warn(format!(
+                        "{}: record {}: topic {}: NavSatFix status {} (no fix): epochs without fix from here to the next fix",
+                        self.file.display(),
+                        m.record,
+                        m.topic,
+                        fix.status
+                    ));
+                }
+                self.in_outage = true;
+                None
+            }
+            (Some(_), None) => {
+                return self.warn_record(
+                    m,
+                    format!(
+                        "NavSatFix position {}, {}, {} is not a valid position; skipped",
+                        fix.latitude, fix.longitude, fix.altitude
+                    ),
+                );
+            }
+        };
+        self.content.gnss.push(GnssRecord {
+            time_s,
+            fix: gnss_fix,
+            heading_deg: None,
+        });
+        self.content.navsat.push(NavSatRow {
+            time_s,
+            status: fix.status,
+            service: fix.service,
+            lat_lon_alt: [fix.latitude, fix.longitude, fix.altitude],
+            covariance_type: fix.position_covariance_type,
+            covariance: fix.position_covariance,
+        });
+    }
+}
+
+/// The header stamp, or the log time when the stamp is zero (a driver that sets none).
+fn stamp_or_log_time(header: &ros_decode::Header, m: &McapMessage<'_>) -> i64 {
+    match header.stamp_ns() {
+        0 => i64::try_from(m.log_time).unwrap_or(i64::MAX),
+        s => s,
+    }
+}
+
+/// The file extension of a compressed image from its `format`, else its magic bytes.
+fn compressed_extension(format: &str, data: &[u8]) -> Result<&'static str, String> {
+    let f = format.to_ascii_lowercase();
+    if f.contains("jpeg") || f.contains("jpg") || data.starts_with(&[0xff, 0xd8]) {
+        Ok("jpg")
+    } else if f.contains("png") || data.starts_with(b"\x89PNG") {
+        Ok("png")
+    } else if f.contains("tiff") || data.starts_with(b"II*\0") || data.starts_with(b"MM\0*") {
+        Ok("tiff")
+    } else {
+        Err(format!(
+            "compressed image format `{format}` is not JPEG, PNG or TIFF"
+        ))
+    }
+}
+
+/// A `sensor_msgs/Image` as PNG (`mono8`, `8UC1`, `mono16`, `16UC1`, `rgb8`, `bgr8`, `rgba8`,
+/// `bgra8`).
+fn raw_to_png(img: &ros_decode::RawImage<'_>) -> Result<Vec<u8>, String> {
+    let (color, depth, channels, bytes, swap_rb) = match img.encoding {
+        "mono8" | "8UC1" => (png::ColorType::Grayscale, png::BitDepth::Eight, 1, 1, false),
+        "mono16" | "16UC1" => (
+            png::ColorType::Grayscale,
+            png::BitDepth::Sixteen,
+            1,
+            2,
+            false,
+        ),
+        "rgb8" => (png::ColorType::Rgb, png::BitDepth::Eight, 3, 1, false),
+        "bgr8" => (png::ColorType::Rgb, png::BitDepth::Eight, 3, 1, true),
+        "rgba8" => (png::ColorType::Rgba, png::BitDepth::Eight, 4, 1, false),
+        "bgra8" => (png::ColorType::Rgba, png::BitDepth::Eight, 4, 1, true),
+        other => return Err(format!("raw image encoding `{other}` is not supported")),
+    };
+    let (w, h) = (u64::from(img.width), u64::from(img.height));
+    if w == 0 || h == 0 || w * h > MAX_RAW_PIXELS {
+        return Err(format!("raw image of {w}x{h} pixels is empty or too large"));
+    }
+    let row = w * channels * bytes;
+    let step = u64::from(img.step);
+    if step < row || (img.data.len() as u64) < step * (h - 1) + row {
+        return Err(format!(
+            "raw image {w}x{h} `{}` step {step}: {} data bytes are too few",
+            img.encoding,
+            img.data.len()
+        ));
+    }
+    let mut pixels = Vec::with_capacity((row * h) as usize);
+    for y in 0..h as usize {
+        let start = y * step as usize;
+        pixels.extend_from_slice(&img.data[start..start + row as usize]);
+    }
+    let px = (channels * bytes) as usize;
+    if swap_rb {
+        for p in pixels.chunks_exact_mut(px) {
+            p.swap(0, 2);
+        }
+    }
+    if bytes == 2 && !img.is_bigendian {
+        // PNG stores 16-bit samples big-endian.
+        for p in pixels.chunks_exact_mut(2) {
+            p.swap(0, 1);
+        }
+    }
+    let mut out = Vec::new();
+    let mut encoder = png::Encoder::new(&mut out, img.width, img.height);
+    encoder.set_color(color);
+    encoder.set_depth(depth);
+    encoder.set_compression(png::Compression::Fast);
+    let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
+    writer
+        .write_image_data(&pixels)
+        .map_err(|e| e.to_string())?;
+    writer.finish().map_err(|e| e.to_string())?;
+    Ok(out)
+}
+
+/// The outcome of an MCAP import.
+#[derive(Debug)]
+pub struct McapImport {
+    /// The manifest written.
+    pub manifest: Manifest,
+    /// Counts and warnings.
+    pub report: ImportReport,
+    /// What the MCAP reader read and skipped.
+    pub mcap: McapReadSummary,
+    /// Message types ignored, with their counts.
+    pub ignored_types: BTreeMap<String, u64>,
+}
+
+/// Imports `file` (a rosbag2 MCAP) into the drive folder `out`.
+///
+/// # Errors
+/// [`ImportError`] when the file cannot be read at all or a drive file cannot be written;
+/// damaged records and unusable messages are warnings in the report.
+pub fn import_mcap(
+    file: &Path,
+    out: &Path,
+    options: &McapImportOptions,
+) -> Result<McapImport, ImportError> {
+    // The inputs named by the options are checked before anything is written.
+    for p in std::iter::once(&options.rig).chain(&options.landmarks) {
+        std::fs::metadata(p).map_err(|source| ImportError::Read {
+            path: p.clone(),
+            source,
+        })?;
+    }
+    let mut state = State {
+        out: out.to_path_buf(),
+        file: file.to_path_buf(),
+        options,
+        images: Vec::new(),
+        names: HashSet::new(),
+        content: DriveContent::default(),
+        report: ImportReport::default(),
+        skipped_topics: BTreeMap::new(),
+        ignored_types: BTreeMap::new(),
+        cameras: HashMap::new(),
+        error: None,
+        in_outage: false,
+    };
+    let mcap = read_mcap_file(file, &mut |m| state.message(m))?;
+    if let Some(e) = state.error.take() {
+        return Err(e);
+    }
+    let mut report = std::mem::take(&mut state.report);
+    for w in mcap.messages() {
+        report.warn(w);
+    }
+    for (topic, (reason, n)) in &state.skipped_topics {
+        report.warn(format!(
+            "{}: topic {topic}: {reason}; its {n} message(s) skipped",
+            file.display()
+        ));
+    }
+    let mut content = std::mem::take(&mut state.content);
+    content.gnss.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
+    content.navsat.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
+    content.imu.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
+    let tolerance_ns = (options.stamp_tolerance_s * 1e9).round() as i64;
+    content.frames = assemble_frames(std::mem::take(&mut state.images), tolerance_ns);
+    let manifest = write_drive(
+        out,
+        &options.rig,
+        options.landmarks.as_deref(),
+        &content,
+        &mut report,
+    )?;
+    Ok(McapImport {
+        manifest,
+        report,
+        mcap,
+        ignored_types: state.ignored_types,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn naming_rule_takes_the_last_number() {
+        assert_eq!(camera_of_topic("/lb3/cam12x/image"), Some(12));
+        assert_eq!(camera_of_topic("/camera_0/image_raw"), Some(0));
+        assert_eq!(camera_of_topic("/a5/b7"), Some(7));
+        assert_eq!(camera_of_topic("/image"), None);
+    }
+
+    #[test]
+    fn raw_bgr_becomes_rgb_png() {
+        let data = [1u8, 2, 3, 4, 5, 6, 0, 0]; // 2x1 bgr8, step 8 (padding)
+        let img = ros_decode::RawImage {
+            header: ros_decode::Header {
+                sec: 0,
+                nanosec: 0,
+                frame_id: String::new(),
+            },
+            height: 1,
+            width: 2,
+            encoding: "bgr8",
+            is_bigendian: false,
+            step: 8,
+            data: &data,
+        };
+        let png = raw_to_png(&img).unwrap();
+        let decoder = png::Decoder::new(std::io::Cursor::new(png));
+        let mut reader = decoder.read_info().unwrap();
+        let mut buf = vec![0; reader.output_buffer_size()];
+        reader.next_frame(&mut buf).unwrap();
+        assert_eq!(&buf[..6], &[3, 2, 1, 6, 5, 4]);
+        let short = ros_decode::RawImage {
+            data: &data[..5],
+            ..img
+        };
+        assert!(raw_to_png(&short).unwrap_err().contains("too few"));
+    }
+}
