@@ -106,6 +106,8 @@ pub struct ReplaySettings {
     pub from_images: bool,
     /// The image size of cameras whose calibration has none (`--image-size WxH`).
     pub image_size: Option<(u32, u32)>,
+    /// The lamp detector of `--from-images`.
+    pub detector: vgps_replay::frame_images::DetectorKind,
     /// Satellite GPS from another file.
     pub gnss: GnssInputArgs,
 }
@@ -125,6 +127,8 @@ pub struct DetectSettings {
     pub strictness: Strictness,
     /// The image size of cameras whose calibration has none (`--image-size WxH`).
     pub image_size: Option<(u32, u32)>,
+    /// The lamp detector.
+    pub detector: vgps_replay::frame_images::DetectorKind,
 }
 
 /// Validated settings of `vgps map`.
@@ -228,6 +232,7 @@ impl TryFrom<Cli> for Settings {
                 quiet: a.quiet,
                 strictness: strictness(a.strict),
                 image_size: a.image_size,
+                detector: a.detector.into(),
                 drive: a.drive,
             }),
             Command::Map(a) => Settings::Map(MapSettings::from(a)),
@@ -279,6 +284,7 @@ impl TryFrom<ReplayArgs> for ReplaySettings {
             gnss_prior: !a.no_gnss_prior,
             from_images: a.from_images,
             image_size: a.image_size,
+            detector: a.detector.into(),
             gnss: a.gnss,
         })
     }
