@@ -146,5 +146,7 @@ fn the_mask_is_applied_before_detection() {
     let street = ImageDetector::new(DetectorKind::Street, &masked_rig);
     let found = detect_frame_images(dir.path(), &frame, &masked_rig, &street);
     assert_eq!(found.detections.len(), 1, "{found:?}");
-    assert!((found.detections[0].u - 20.0).abs() < 1e-9 && (found.detections[0].v - 8.0).abs() < 1e-9);
+    assert!(
+        (found.detections[0].u - 20.0).abs() < 1e-9 && (found.detections[0].v - 8.0).abs() < 1e-9
+    );
 }
