@@ -98,7 +98,7 @@ fn detections_on_masked_pixels_are_dropped() {
         );
         // Mask the right half: the lamp at (48, 20) is dropped.
         let mask = CameraMask::from_fn(64, 32, |u, _| u >= 32).expect("mask");
-        let masked_rig = rig.with_mask(0, mask).expect("same size");
+        let masked_rig = rig.clone().with_mask(0, mask).expect("same size");
         let detector = ImageDetector::new(kind, &masked_rig);
         let kept = detect_frame_images(dir.path(), &frame, &masked_rig, &detector);
         assert_eq!(kept.detections.len(), 1, "{kind:?}");
