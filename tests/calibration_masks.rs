@@ -8,7 +8,7 @@ use vgps::calibration::{
     Camera, CameraMask, Equirectangular, EquirectangularParams, Rig, formats::nclt,
 };
 use vgps::drive::FrameRecord;
-use vgps::imaging::{LampDetector, detect_frame_images, encode_png};
+use vgps::imaging::{DetectorKind, ImageDetector, detect_frame_images, encode_png};
 
 fn manifest(p: &str) -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(p)
@@ -88,14 +88,65 @@ fn detections_on_masked_pixels_are_dropped() {
         time_s: 0.0,
         images: vec![Some("f.png".into())],
     };
-    let detector = LampDetector::default();
-    let all = detect_frame_images(dir.path(), &frame, &rig, &detector);
-    assert_eq!(all.detections.len(), 2, "{all:?}");
-    // Mask the right half: the lamp at (48, 20) is dropped.
-    let mask = CameraMask::from_fn(64, 32, |u, _| u >= 32).expect("mask");
-    let masked_rig = rig.with_mask(0, mask).expect("same size");
-    let kept = detect_frame_images(dir.path(), &frame, &masked_rig, &detector);
-    assert_eq!(kept.detections.len(), 1);
-    assert!((kept.detections[0].u - 12.0).abs() < 0.5);
-    assert!(kept.problems.is_empty());
+    for kind in [DetectorKind::Point, DetectorKind::Street] {
+        let all = detect_frame_images(dir.path(), &frame, &rig, &ImageDetector::new(kind, &rig));
+        assert_eq!(all.detections.len(), 2, "{kind:?}: {all:?}");
+        assert!(
+            all.detections
+                .iter()
+                .all(|d| d.class.as_deref() == Some("streetlight"))
+        );
+        // Mask the right half: the lamp at (48, 20) is dropped.
+        let mask = CameraMask::from_fn(64, 32, |u, _| u >= 32).expect("mask");
+        let masked_rig = rig.clone().with_mask(0, mask).expect("same size");
+        let detector = ImageDetector::new(kind, &masked_rig);
+        let kept = detect_frame_images(dir.path(), &frame, &masked_rig, &detector);
+        assert_eq!(kept.detections.len(), 1, "{kind:?}");
+        assert!((kept.detections[0].u - 12.0).abs() < 0.5);
+        assert!(kept.problems.is_empty());
+    }
+}
+
+#[test]
+fn the_mask_is_applied_before_detection() {
+    // A saturated car body along the bottom sets the street detector's white level, which
+    // hides the dimmer lamp above it (and the body is no lamp: too long). With the body
+    // masked before detection, the lamp is the brightest core left and is found.
+    let dir = tempfile::tempdir().expect("tmp");
+    let img = GrayImage::from_fn(64, 32, |u, v| {
+        let lamp = u.abs_diff(20) <= 1 && v.abs_diff(8) <= 1;
+        image::Luma([if v >= 26 {
+            255
+        } else if lamp {
+            200
+        } else {
+            10
+        }])
+    });
+    std::fs::write(dir.path().join("f.png"), encode_png(&img).expect("png")).expect("write");
+    let pano = Equirectangular::new(EquirectangularParams {
+        width: 64,
+        height: 32,
+    })
+    .expect("pano");
+    let rig = Rig::panorama(Camera::from(pano));
+    let frame = FrameRecord {
+        frame: 0,
+        time_s: 0.0,
+        images: vec![Some("f.png".into())],
+    };
+    let street = ImageDetector::new(DetectorKind::Street, &rig);
+    let unmasked = detect_frame_images(dir.path(), &frame, &rig, &street);
+    assert!(
+        unmasked.detections.iter().all(|d| (d.u - 20.0).abs() > 2.0),
+        "{unmasked:?}"
+    );
+    let body = CameraMask::from_fn(64, 32, |_, v| v >= 26).expect("mask");
+    let masked_rig = rig.with_mask(0, body).expect("same size");
+    let street = ImageDetector::new(DetectorKind::Street, &masked_rig);
+    let found = detect_frame_images(dir.path(), &frame, &masked_rig, &street);
+    assert_eq!(found.detections.len(), 1, "{found:?}");
+    assert!(
+        (found.detections[0].u - 20.0).abs() < 1e-9 && (found.detections[0].v - 8.0).abs() < 1e-9
+    );
 }

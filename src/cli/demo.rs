@@ -159,6 +159,7 @@ fn replay_settings(
         gnss_prior: true,
         from_images,
         image_size: None,
+        detector: vgps_replay::frame_images::DetectorKind::Point,
         gnss: Default::default(),
         mcap: Default::default(),
     }

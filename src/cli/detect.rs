@@ -12,7 +12,9 @@
 //! the file lists the frames in the drive's order whatever the number of threads.
 
 use super::{CliError, DetectSettings};
-use crate::imaging::{FrameImageResult, ImageProblemKind, LampDetector, detect_frame_images};
+use crate::imaging::{
+    DetectorKind, FrameImageResult, ImageDetector, ImageProblemKind, detect_frame_images,
+};
 use std::collections::BTreeMap;
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
@@ -46,6 +48,29 @@ pub struct DetectArgs {
     /// default taken from the images (all images of those cameras must agree).
     #[arg(long, value_parser = super::image_size::parse_image_size)]
     pub image_size: Option<(u32, u32)>,
+    /// The lamp detector: `point` (every spot above the noise: rendered night frames) or
+    /// `street` (bright cores against their local background, windows, reflections,
+    /// vehicle lights and ghosts rejected: real night photos).
+    #[arg(long, value_enum, default_value = "point")]
+    pub detector: DetectorArg,
+}
+
+/// The lamp detectors of `--detector`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum DetectorArg {
+    /// Every spot above a noise-based threshold (point lights on a dark background).
+    Point,
+    /// The night-street detector (real photos: JPEG, bloom, windows, reflections).
+    Street,
+}
+
+impl From<DetectorArg> for DetectorKind {
+    fn from(a: DetectorArg) -> Self {
+        match a {
+            DetectorArg::Point => DetectorKind::Point,
+            DetectorArg::Street => DetectorKind::Street,
+        }
+    }
 }
 
 /// Counts of one `vgps detect` run.
@@ -122,7 +147,7 @@ pub fn run(
         );
         bar
     });
-    let detector = LampDetector::default();
+    let detector = ImageDetector::new(settings.detector, drive.rig());
     let next = AtomicUsize::new(0);
     let worker = || {
         let mut done = Vec::new();

@@ -14,12 +14,12 @@ use nalgebra::Matrix2;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use vgps_camera::imaging::LampDetector;
 use vgps_core::localizer::{
     Frame, GnssPosition, LandmarkMap, Localizer, LocalizerFix, LocalizerOptions, LocalizerStatus,
 };
 use vgps_replay::drive::gnss::gnss_at;
 use vgps_replay::drive::{Drive, FrameStatus};
+use vgps_replay::frame_images::ImageDetector;
 use vgps_replay::report::{DriveInfo, FrameRecord, Report, Truth, VisualFix, summary_table};
 
 /// The status of a frame none of whose images could be used.
@@ -74,6 +74,9 @@ pub struct ReplayArgs {
     /// Detect lamps in the images even when the drive has `detections.csv`.
     #[arg(long)]
     pub from_images: bool,
+    /// The lamp detector of the images (see `vgps detect --detector`).
+    #[arg(long, value_enum, default_value = "point")]
+    pub detector: super::detect::DetectorArg,
     /// Satellite GPS from another file.
     #[command(flatten)]
     pub gnss: super::gnss_input::GnssInputArgs,
@@ -175,9 +178,10 @@ pub fn run(
         bar
     });
     let mut records = Vec::with_capacity(frames.len());
+    let detector = ImageDetector::new(settings.detector, drive.rig());
     for batch in frames.chunks(BATCH_FRAMES) {
         let detections: Vec<FrameDetections> = if from_images {
-            detect_batch(&drive, batch, settings.threads)
+            detect_batch(&drive, batch, settings.threads, &detector)
         } else {
             file_detections(&drive, batch, err)
         };
@@ -369,14 +373,13 @@ fn detect_batch(
     drive: &Drive,
     batch: &[vgps_replay::drive::FrameRecord],
     threads: usize,
+    detector: &ImageDetector,
 ) -> Vec<FrameDetections<'static>> {
-    let detector = LampDetector::default();
     let chunk = batch.len().div_ceil(threads).max(1);
     std::thread::scope(|scope| {
         let handles: Vec<_> = batch
             .chunks(chunk)
             .map(|frames| {
-                let detector = &detector;
                 let handle = scope.spawn(move || {
                     frames
                         .iter()
@@ -407,7 +410,7 @@ fn detect_batch(
 fn detect_frame(
     drive: &Drive,
     frame: &vgps_replay::drive::FrameRecord,
-    detector: &LampDetector,
+    detector: &ImageDetector,
 ) -> FrameDetections<'static> {
     if frame.images.iter().all(Option::is_none) {
         return FrameDetections::Bad {

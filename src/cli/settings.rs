@@ -106,6 +106,8 @@ pub struct ReplaySettings {
     pub from_images: bool,
     /// The image size of cameras whose calibration has none (`--image-size WxH`).
     pub image_size: Option<(u32, u32)>,
+    /// The lamp detector of `--from-images`.
+    pub detector: vgps_replay::frame_images::DetectorKind,
     /// Satellite GPS from another file.
     pub gnss: GnssInputArgs,
     /// The options of an MCAP recording given as the drive.
@@ -127,6 +129,8 @@ pub struct DetectSettings {
     pub strictness: Strictness,
     /// The image size of cameras whose calibration has none (`--image-size WxH`).
     pub image_size: Option<(u32, u32)>,
+    /// The lamp detector.
+    pub detector: vgps_replay::frame_images::DetectorKind,
 }
 
 /// Validated settings of `vgps map`.
@@ -235,6 +239,7 @@ impl TryFrom<Cli> for Settings {
                 quiet: a.quiet,
                 strictness: strictness(a.strict),
                 image_size: a.image_size,
+                detector: a.detector.into(),
                 drive: a.drive,
             }),
             Command::Map(a) => Settings::Map(MapSettings::from(a)),
@@ -293,6 +298,7 @@ impl TryFrom<ReplayArgs> for ReplaySettings {
             gnss_prior: !a.no_gnss_prior,
             from_images: a.from_images,
             image_size: a.image_size,
+            detector: a.detector.into(),
             gnss: a.gnss,
             mcap: a.mcap,
         })

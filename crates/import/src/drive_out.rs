@@ -5,7 +5,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use vgps_replay::drive::{
-    self, Frame, GnssRecord, MAX_IMAGE_COLUMNS, Manifest, TruthRecord, nmea::write_nmea,
+    self, FrameRecord, GnssRecord, MAX_IMAGE_COLUMNS, Manifest, TruthRecord, nmea::write_nmea,
 };
 
 /// Default tolerance between the stamps of one frame's images, seconds.
@@ -77,19 +77,19 @@ pub fn seconds_of_ns(ns: i64) -> f64 {
 /// assert_eq!(frames[0].images, vec![Some("0_0".to_string()), Some("3_1".to_string())]);
 /// assert_eq!(frames[1].images, vec![Some("100_0".to_string()), None]);
 /// ```
-pub fn assemble_frames(mut images: Vec<StampedImage>, tolerance_ns: i64) -> Vec<Frame> {
+pub fn assemble_frames(mut images: Vec<StampedImage>, tolerance_ns: i64) -> Vec<FrameRecord> {
     images.sort();
     let cameras = images.iter().map(|i| i.camera + 1).max().unwrap_or(0);
-    let mut frames: Vec<Frame> = Vec::new();
+    let mut frames: Vec<FrameRecord> = Vec::new();
     let mut start = i64::MIN;
     for image in images {
-        let fits = frames.last().is_some_and(|f: &Frame| {
+        let fits = frames.last().is_some_and(|f: &FrameRecord| {
             image.time_ns.saturating_sub(start) <= tolerance_ns
                 && f.images.get(image.camera).is_some_and(Option::is_none)
         });
         if !fits {
             start = image.time_ns;
-            frames.push(Frame {
+            frames.push(FrameRecord {
                 frame: frames.len() as u64,
                 time_s: seconds_of_ns(image.time_ns),
                 images: vec![None; cameras],
@@ -191,7 +191,7 @@ pub struct ImuRow {
 #[derive(Clone, Debug, Default)]
 pub struct DriveContent {
     /// Frames.
-    pub frames: Vec<Frame>,
+    pub frames: Vec<FrameRecord>,
     /// Satellite GPS epochs (written as `gnss.nmea`), when any.
     pub gnss: Vec<GnssRecord>,
     /// A satellite GPS file to copy as it is instead (`gps.csv` of NCLT), when given.

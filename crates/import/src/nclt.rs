@@ -27,7 +27,7 @@ use crate::drive_out::{DriveContent, ImportError, ImportReport, assemble_frames,
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 use std::path::{Path, PathBuf};
 use vgps_geometry::geo::Geodetic;
-use vgps_replay::drive::{Frame, Manifest, TruthRecord};
+use vgps_replay::drive::{FrameRecord, Manifest, TruthRecord};
 
 /// Latitude of the origin of NCLT's local frame, radians.
 pub const NCLT_LAT0_RAD: f64 = 0.738_167_915_410_646;
@@ -147,7 +147,7 @@ pub fn enu_from_rig_of_rpy(rpy: [f64; 3]) -> UnitQuaternion<f64> {
 /// The truth of each frame, interpolated in the ground truth (linear in position, slerp in
 /// attitude).
 pub fn truth_at_frames(
-    frames: &[Frame],
+    frames: &[FrameRecord],
     gt: &[GroundTruthRow],
     origin_alt_m: f64,
 ) -> Vec<TruthRecord> {

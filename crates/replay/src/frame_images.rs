@@ -1,18 +1,128 @@
 //! Lamp detection over the images of one drive frame (the step shared by `vgps detect` and
 //! `vgps replay --from-images`).
 //!
-//! [`detect_frame_images`] reads each camera's PNG named in the frame (relative to the drive
-//! directory), checks it against the calibration, runs the [`LampDetector`] and returns the
-//! detections in the drive format together with one [`ImageProblem`] per image that could not
-//! be used — a missing file, a non-PNG or corrupt file, a frame of the wrong size — so that
-//! a run can report it and go on with the next frame.
+//! [`detect_frame_images`] reads each camera's image named in the frame (relative to the
+//! drive directory), checks it against the calibration, runs the [`ImageDetector`] — the
+//! point-light [`LampDetector`] or the night-street [`StreetLampDetector`], with the
+//! camera's calibration mask applied before detection — and returns the lamp detections in
+//! the drive format, labelled with the lamp class ([`DEFAULT_LAMP_CLASS`]) so that the
+//! matcher pairs them only with lamp landmarks, together with one [`ImageProblem`] per image
+//! that could not be used — a missing file, a non-image or corrupt file, a frame of the
+//! wrong size — so that a run can report it and go on with the next frame.
 
 use crate::drive::{FrameRecord, PixelDetection};
 use std::path::Path;
 use vgps_camera::calibration::Rig;
 use vgps_camera::imaging::{
-    DecodeLimits, ImagingError, LampDetector, check_dimensions, read_image,
+    DecodeLimits, ImagingError, LampDetector, Mask, StreetLampDetector, check_dimensions,
+    read_image,
 };
+
+/// The class written on detections found in night images: the drive format's lamp class
+/// (`landmarks.csv` `class`). The matcher pairs a classed detection only with landmarks of
+/// that class; a map without the class (or without a `class` column) pairs it with any.
+pub const DEFAULT_LAMP_CLASS: &str = "streetlight";
+
+/// Which lamp detector runs on the images.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum DetectorKind {
+    /// [`LampDetector`]: every spot above a noise-based threshold (point lights on a dark
+    /// background: the renderer's images).
+    #[default]
+    Point,
+    /// [`StreetLampDetector`]: bright cores against their local background, windows,
+    /// reflections, vehicle lights and ghosts rejected (real night streets).
+    Street,
+}
+
+impl DetectorKind {
+    /// `point` or `street`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Point => "point",
+            Self::Street => "street",
+        }
+    }
+}
+
+/// The detector of a drive's images: the detector kind, each camera's detection mask (from
+/// the rig's calibration masks) and the class written on the detections.
+#[derive(Clone, Debug)]
+pub struct ImageDetector {
+    kind: DetectorKind,
+    point: LampDetector,
+    street: StreetLampDetector,
+    masks: Vec<Option<Mask>>,
+    class: Option<String>,
+}
+
+impl ImageDetector {
+    /// The detector `kind` for the cameras of `rig` (their masks are converted once here),
+    /// labelling detections [`DEFAULT_LAMP_CLASS`].
+    pub fn new(kind: DetectorKind, rig: &Rig) -> Self {
+        Self {
+            kind,
+            point: LampDetector::default(),
+            street: StreetLampDetector::default(),
+            masks: (0..rig.len())
+                .map(|k| rig.mask(k).map(Mask::from_camera_mask))
+                .collect(),
+            class: Some(DEFAULT_LAMP_CLASS.to_string()),
+        }
+    }
+
+    /// The same detector with the point detector `point` (its parameters).
+    pub fn with_point_detector(mut self, point: LampDetector) -> Self {
+        self.point = point;
+        self
+    }
+
+    /// The same detector writing `class` on its detections (`None`: no class, the matcher
+    /// pairs them with any landmark).
+    pub fn with_class(mut self, class: Option<String>) -> Self {
+        self.class = class;
+        self
+    }
+
+    /// The detector kind.
+    pub fn kind(&self) -> DetectorKind {
+        self.kind
+    }
+
+    /// The lamps of one image of camera `camera`: `(u, v, strength)`, the camera's mask
+    /// applied before detection (a mask of another size than the image is ignored: the
+    /// image's size was checked against the calibration, whose mask has its size).
+    ///
+    /// # Errors
+    /// The detector's [`ImagingError::TooManyRuns`] on a flooded image.
+    pub fn detect(
+        &self,
+        camera: usize,
+        image: &image::GrayImage,
+    ) -> Result<Vec<(f64, f64, f64)>, ImagingError> {
+        let mask = self
+            .masks
+            .get(camera)
+            .and_then(Option::as_ref)
+            .filter(|m| m.dimensions() == image.dimensions());
+        Ok(match self.kind {
+            DetectorKind::Point => self
+                .point
+                .detect(image, mask)?
+                .lamps
+                .iter()
+                .map(|l| (l.u, l.v, l.strength))
+                .collect(),
+            DetectorKind::Street => self
+                .street
+                .detect_masked(image, mask)?
+                .lamps
+                .iter()
+                .map(|l| (l.u, l.v, l.strength))
+                .collect(),
+        })
+    }
+}
 
 /// Why one image of a frame gave no detections.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -84,8 +194,9 @@ pub struct ImageProblem {
 pub struct FrameImageResult {
     /// The frame number.
     pub frame: u64,
-    /// The lamp detections of the usable images (class `None`, `strength` = the
-    /// background-subtracted sum of the blob in DN), camera by camera.
+    /// The lamp detections of the usable images (class: the detector's, by default
+    /// [`DEFAULT_LAMP_CLASS`]; `strength` = the background-subtracted sum of the blob in
+    /// DN), camera by camera.
     pub detections: Vec<PixelDetection>,
     /// Number of images named by the frame.
     pub images: usize,
@@ -117,19 +228,20 @@ impl FrameImageResult {
 ///
 /// Each image `frame.images[k]` (a path relative to `drive_dir`) is read with
 /// [`DecodeLimits::for_camera`] of camera `k` of `rig`, checked against its size
-/// ([`check_dimensions`]) and passed to `detector`. A failing image is recorded in
+/// ([`check_dimensions`]) and passed to `detector` (which applies the camera's mask before
+/// detection). A failing image is recorded in
 /// [`FrameImageResult::problems`]; the other images' detections are kept. Never panics on
 /// file content.
 ///
 /// # Example
 /// ```
 /// use vgps_replay::drive::FrameRecord;
-/// use vgps_camera::imaging::LampDetector;
-/// use vgps_replay::frame_images::{ImageProblemKind, detect_frame_images};
+/// use vgps_replay::frame_images::{DetectorKind, ImageDetector, ImageProblemKind, detect_frame_images};
 /// let rig = vgps_sim::simulate::default_rig()?;
 /// let dir = tempfile::tempdir()?;
 /// let frame = FrameRecord { frame: 3, time_s: 0.0, images: vec![Some("none.png".into()), None] };
-/// let result = detect_frame_images(dir.path(), &frame, &rig, &LampDetector::default());
+/// let detector = ImageDetector::new(DetectorKind::Point, &rig);
+/// let result = detect_frame_images(dir.path(), &frame, &rig, &detector);
 /// assert_eq!(result.images, 1);
 /// assert_eq!(result.problems[0].kind, ImageProblemKind::Missing);
 /// assert!(result.is_unusable());
@@ -139,7 +251,7 @@ pub fn detect_frame_images(
     drive_dir: &Path,
     frame: &FrameRecord,
     rig: &Rig,
-    detector: &LampDetector,
+    detector: &ImageDetector,
 ) -> FrameImageResult {
     let mut result = FrameImageResult {
         frame: frame.frame,
@@ -160,22 +272,21 @@ pub fn detect_frame_images(
         let limits = DecodeLimits::for_camera(&rig_camera.model);
         let decoded = read_image(&path, &limits)
             .and_then(|img| check_dimensions(&img, &rig_camera.model, &path).map(|()| img))
-            .and_then(|img| detector.detect(&img, None));
+            .and_then(|img| detector.detect(camera, &img));
         match decoded {
-            // Detections on pixels that never see the world (the calibration's mask) are
-            // dropped.
+            // The mask was applied before detection; a centroid that still falls on a masked
+            // pixel (a spot straddling the mask's edge) is dropped too.
             Ok(found) => result.detections.extend(
                 found
-                    .lamps
-                    .iter()
-                    .filter(|l| !rig.is_masked(camera, &nalgebra::Vector2::new(l.u, l.v)))
-                    .map(|l| PixelDetection {
+                    .into_iter()
+                    .filter(|&(u, v, _)| !rig.is_masked(camera, &nalgebra::Vector2::new(u, v)))
+                    .map(|(u, v, strength)| PixelDetection {
                         frame: frame.frame,
                         camera,
-                        u: l.u,
-                        v: l.v,
-                        strength: Some(l.strength),
-                        class: None,
+                        u,
+                        v,
+                        strength: Some(strength),
+                        class: detector.class.clone(),
                     }),
             ),
             Err(e) => result.problems.push(ImageProblem {

@@ -504,8 +504,8 @@ pub fn gis_landmarks(data: &[u8]) {
 /// Target `truth_formats`: [`vgps_replay::drive::truth_formats::read_truth`] for three
 /// frames (vgps, INS, NCLT and TUM truth).
 pub fn truth_formats(data: &[u8]) {
-    let frames: Vec<vgps_replay::drive::Frame> = (0..3)
-        .map(|k| vgps_replay::drive::Frame {
+    let frames: Vec<vgps_replay::drive::FrameRecord> = (0..3)
+        .map(|k| vgps_replay::drive::FrameRecord {
             frame: k,
             time_s: k as f64 * 0.1,
             images: vec![],

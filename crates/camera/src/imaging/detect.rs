@@ -181,6 +181,30 @@ impl Mask {
         }
     }
 
+    /// The detection mask of a calibration's camera mask (the pixels that never see the
+    /// world: the vehicle's body, the mount), so that detection skips them.
+    ///
+    /// # Example
+    /// ```
+    /// use vgps_camera::calibration::CameraMask;
+    /// use vgps_camera::imaging::Mask;
+    /// let body = CameraMask::from_fn(64, 32, |_, v| v >= 28).expect("mask");
+    /// let mask = Mask::from_camera_mask(&body);
+    /// assert!(mask.is_masked(10, 30) && !mask.is_masked(10, 5));
+    /// ```
+    pub fn from_camera_mask(camera_mask: &crate::calibration::CameraMask) -> Self {
+        let (width, height) = camera_mask.dimensions();
+        let mut mask = Self::new(width, height);
+        for y in 0..height {
+            for x in 0..width {
+                if camera_mask.is_masked(x, y) {
+                    mask.set(x, y);
+                }
+            }
+        }
+        mask
+    }
+
     /// A mask from an image of the same size: non-zero pixels are masked.
     pub fn from_image(image: &GrayImage) -> Self {
         let mut mask = Self::new(image.width(), image.height());

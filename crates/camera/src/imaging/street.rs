@@ -33,7 +33,7 @@
 //! Every threshold is a named constant with its unit and reason; the geometric ones are in
 //! units of the core's own radius, so the rules hold at any resolution.
 
-use super::{DetectorConfig, ImagingError, LampDetection, LampDetector, Threshold};
+use super::{DetectorConfig, ImagingError, LampDetection, LampDetector, Mask, Threshold};
 use image::GrayImage;
 
 /// Fraction of the image's white level (largest value) above which a pixel belongs to a
@@ -230,16 +230,48 @@ impl StreetLampDetector {
     /// [`ImagingError::TooManyRuns`] when the frame is flooded (more core runs than the
     /// component labelling's bound).
     pub fn detect(&self, image: &GrayImage) -> Result<StreetDetections, ImagingError> {
+        self.detect_masked(image, None)
+    }
+
+    /// Detects and classifies the bright cores of `image`, ignoring the pixels of `mask`
+    /// (the vehicle's body, the mount): masked pixels are no core, and count neither in the
+    /// white level, the median nor a core's local background.
+    ///
+    /// # Errors
+    /// [`ImagingError::MaskDimensions`] when the mask's size differs from the image's;
+    /// [`ImagingError::TooManyRuns`] when the frame is flooded.
+    pub fn detect_masked(
+        &self,
+        image: &GrayImage,
+        mask: Option<&Mask>,
+    ) -> Result<StreetDetections, ImagingError> {
         let (w, h) = image.dimensions();
+        if let Some(m) = mask
+            && m.dimensions() != (w, h)
+        {
+            let (mask_width, mask_height) = m.dimensions();
+            return Err(ImagingError::MaskDimensions {
+                mask_width,
+                mask_height,
+                width: w,
+                height: h,
+            });
+        }
         let pixels = image.as_raw();
         if pixels.is_empty() {
             return Ok(StreetDetections::default());
         }
-        let white = pixels
-            .chunks(64)
-            .map(|c| c.iter().fold(0u8, |a, &b| a.max(b)))
-            .fold(0u8, u8::max);
-        let median = median_of_rows(pixels, w as usize, h as usize);
+        let white = match mask {
+            None => pixels
+                .chunks(64)
+                .map(|c| c.iter().fold(0u8, |a, &b| a.max(b)))
+                .fold(0u8, u8::max),
+            Some(m) => image
+                .enumerate_pixels()
+                .filter(|(x, y, _)| !m.is_masked(*x, *y))
+                .fold(0u8, |a, (_, _, p)| a.max(p[0])),
+        };
+        let median = median_of_rows(image, mask);
         let level = (CORE_FRACTION * f64::from(white)).max(median + MIN_CORE_CONTRAST_DN);
         if !(level < 255.0) {
             // Nothing can be above the level.
@@ -257,7 +289,7 @@ impl StreetLampDetector {
             max_elongation: f64::INFINITY,
             ..DetectorConfig::default()
         });
-        let found = labelling.detect(image, None)?;
+        let found = labelling.detect(image, mask)?;
         let mut cores: Vec<Core> = found
             .lamps
             .iter()
@@ -306,7 +338,7 @@ impl StreetLampDetector {
         let mut shapes: Vec<Core> = Vec::new();
         let mut rejected = 0;
         for c in cores.iter().filter(|c| !c.merged) {
-            let background = annulus_median(image, c.d.u, c.d.v, c.radius);
+            let background = annulus_median(image, mask, c.d.u, c.d.v, c.radius);
             let peak = f64::from(c.d.peak);
             if !(peak - background >= MIN_LOCAL_CONTRAST * peak) {
                 rejected += 1;
@@ -457,15 +489,20 @@ fn bridge_min(image: &GrayImage, a: (f64, f64), b: (f64, f64)) -> f64 {
     low
 }
 
-/// The median of the image (DN), from a histogram of every 8th row.
-fn median_of_rows(pixels: &[u8], w: usize, h: usize) -> f64 {
+/// The median of the image's unmasked pixels (DN), from a histogram of every 8th row.
+fn median_of_rows(image: &GrayImage, mask: Option<&Mask>) -> f64 {
+    let (w, h) = (image.width() as usize, image.height() as usize);
+    let pixels = image.as_raw();
     let mut hist = [0u32; 256];
     let mut n = 0u64;
     for y in (0..h).step_by(8) {
-        for &p in &pixels[y * w..(y + 1) * w] {
+        for (x, &p) in pixels[y * w..(y + 1) * w].iter().enumerate() {
+            if mask.is_some_and(|m| m.is_masked(x as u32, y as u32)) {
+                continue;
+            }
             hist[p as usize] += 1;
+            n += 1;
         }
-        n += w as u64;
     }
     let mut seen = 0u64;
     for (value, &count) in hist.iter().enumerate() {
@@ -479,7 +516,7 @@ fn median_of_rows(pixels: &[u8], w: usize, h: usize) -> f64 {
 
 /// The median of the pixels in the annulus around `(u, v)` for a core of `radius` px,
 /// sampled on a grid of about [`ANNULUS_STRIDE_TARGET`]² points over its bounding square.
-fn annulus_median(image: &GrayImage, u: f64, v: f64, radius: f64) -> f64 {
+fn annulus_median(image: &GrayImage, mask: Option<&Mask>, u: f64, v: f64, radius: f64) -> f64 {
     let inner = (ANNULUS_INNER_RADII * radius).max(MIN_ANNULUS_PX.0);
     let outer = (ANNULUS_OUTER_RADII * radius).max(MIN_ANNULUS_PX.1);
     let step = ((2.0 * outer / ANNULUS_STRIDE_TARGET).floor() as i64).max(1);
@@ -496,7 +533,11 @@ fn annulus_median(image: &GrayImage, u: f64, v: f64, radius: f64) -> f64 {
             while dx <= reach {
                 let x = cu + dx;
                 let d = ((dx * dx + dy * dy) as f64).sqrt();
-                if (0..w).contains(&x) && d >= inner && d <= outer {
+                if (0..w).contains(&x)
+                    && d >= inner
+                    && d <= outer
+                    && !mask.is_some_and(|m| m.is_masked(x as u32, y as u32))
+                {
                     hist[image.get_pixel(x as u32, y as u32)[0] as usize] += 1;
                     n += 1;
                 }

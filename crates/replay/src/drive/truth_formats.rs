@@ -32,7 +32,7 @@
 //! when they are at most [`MAX_TRUTH_GAP_S`] apart (position linear in latitude, longitude
 //! and height, attitude by slerp); a frame outside or in a larger gap has no truth.
 
-use super::{Frame, TruthRecord};
+use super::{FrameRecord, TruthRecord};
 use nalgebra::{Matrix3, Quaternion, Rotation3, UnitQuaternion, Vector3};
 use std::path::Path;
 use vgps_geometry::geo::Geodetic;
@@ -208,9 +208,9 @@ fn numbers(parts: &[&str], names: &[&str]) -> Result<Vec<f64>, String> {
 ///
 /// # Example
 /// ```
-/// use vgps_replay::drive::{Frame, truth_formats::{read_truth, TruthFormat}};
+/// use vgps_replay::drive::{FrameRecord, truth_formats::{read_truth, TruthFormat}};
 /// use std::path::Path;
-/// let frames = [Frame { frame: 3, time_s: 100.25, images: vec![] }];
+/// let frames = [FrameRecord { frame: 3, time_s: 100.25, images: vec![] }];
 /// // An INS export: level, heading east (yaw 90°), at 100.0 s and 100.5 s.
 /// let ins = "time,lat,lon,height,roll,pitch,yaw\n100.0,45,7,300,0,0,90\n100.5,45.00001,7,302,0,0,90\n";
 /// let t = read_truth(Path::new("ins.csv"), ins, &frames)?;
@@ -221,7 +221,7 @@ fn numbers(parts: &[&str], names: &[&str]) -> Result<Vec<f64>, String> {
 /// assert!((fwd - nalgebra::Vector3::x()).norm() < 1e-12);
 /// # Ok::<(), String>(())
 /// ```
-pub fn read_truth(path: &Path, text: &str, frames: &[Frame]) -> Result<TruthRead, String> {
+pub fn read_truth(path: &Path, text: &str, frames: &[FrameRecord]) -> Result<TruthRead, String> {
     let file = path.display();
     let format = TruthFormat::sniff(text).ok_or_else(|| {
         format!(
@@ -440,7 +440,7 @@ fn sorted(mut samples: Vec<Sample>) -> Vec<Sample> {
 }
 
 /// The truth of each frame, interpolated between the samples around its time.
-fn at_frames(samples: &[Sample], frames: &[Frame]) -> Vec<TruthRecord> {
+fn at_frames(samples: &[Sample], frames: &[FrameRecord]) -> Vec<TruthRecord> {
     let mut out = Vec::new();
     for f in frames {
         let k = samples.partition_point(|s| s.time_s <= f.time_s);
@@ -483,11 +483,11 @@ fn at_frames(samples: &[Sample], frames: &[Frame]) -> Vec<TruthRecord> {
 mod tests {
     use super::*;
 
-    fn frames(times: &[f64]) -> Vec<Frame> {
+    fn frames(times: &[f64]) -> Vec<FrameRecord> {
         times
             .iter()
             .enumerate()
-            .map(|(k, &t)| Frame {
+            .map(|(k, &t)| FrameRecord {
                 frame: k as u64,
                 time_s: t,
                 images: vec![],
