@@ -160,6 +160,7 @@ fn replay_settings(
         from_images,
         image_size: None,
         gnss: Default::default(),
+        robot: Default::default(),
     }
 }
 

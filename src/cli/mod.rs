@@ -19,6 +19,7 @@ pub mod image_size;
 pub mod locate;
 pub mod map;
 pub mod replay;
+pub mod robot_out;
 pub mod settings;
 pub mod simulate;
 pub mod triangulate;

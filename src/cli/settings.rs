@@ -108,6 +108,8 @@ pub struct ReplaySettings {
     pub image_size: Option<(u32, u32)>,
     /// Satellite GPS from another file.
     pub gnss: GnssInputArgs,
+    /// The live NMEA stream and the MCAP file.
+    pub robot: super::robot_out::RobotOutputArgs,
 }
 
 /// Validated settings of `vgps detect`.
@@ -280,6 +282,7 @@ impl TryFrom<ReplayArgs> for ReplaySettings {
             from_images: a.from_images,
             image_size: a.image_size,
             gnss: a.gnss,
+            robot: a.robot,
         })
     }
 }

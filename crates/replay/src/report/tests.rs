@@ -34,6 +34,9 @@ fn fix(g: Geodetic, heading_deg: f64, n_landmarks: usize, n_surrogates: usize) -
         sigma_n_m: 1.0,
         sigma_u_m: 2.0,
         horizontal_covariance_m2: Matrix2::identity(),
+        pose_covariance: nalgebra::Matrix6::from_diagonal(&nalgebra::Vector6::new(
+            1.0, 1.0, 4.0, 1e-6, 1e-6, 1e-6,
+        )),
         n_landmarks,
         n_surrogates,
     }
@@ -320,13 +323,24 @@ fn nmea_checksums_and_round_trip() {
                 if let Some(lat) = g.latitude {
                     assert!(g.fix_satellites.unwrap() >= 5);
                     assert!(lat > 48.0 && lat < 48.2);
+                    // A visual fix: quality 1, and no HDOP (not a satellite geometry).
+                    assert_eq!(g.fix_type, Some(::nmea::sentences::FixType::Gps));
+                    assert_eq!(g.hdop, None);
                 }
                 "GGA"
             }
             ::nmea::ParseResult::RMC(_) => "RMC",
             ::nmea::ParseResult::GST(g) => {
-                assert_eq!(g.alt_sd, Some(2.0));
+                // σ 1 m east and north, 2 m up: a circle of 1 m.
+                assert_eq!((g.lat_sd, g.long_sd, g.alt_sd), (Some(1.0), Some(1.0), Some(2.0)));
+                assert_eq!(g.ellipse_semi_major_sd, Some(1.0));
+                assert_eq!(g.ellipse_semi_minor_sd, Some(1.0));
+                assert_eq!(g.rms_sd, None);
                 "GST"
+            }
+            ::nmea::ParseResult::GBS(g) => {
+                assert_eq!((g.lat_error, g.lon_error, g.alt_error), (Some(1.0), Some(1.0), Some(2.0)));
+                "GBS"
             }
             ::nmea::ParseResult::HDT(h) => {
                 assert_eq!(h.heading, Some(90.0));
@@ -336,10 +350,11 @@ fn nmea_checksums_and_round_trip() {
         };
         *counts.entry(kind).or_insert(0) += 1;
     }
-    // 8 frames: GGA and RMC for each, GST and HDT for the 7 fixes.
+    // 8 frames: GGA and RMC for each, GST, GBS and HDT for the 7 fixes.
     assert_eq!(counts.get("GGA"), Some(&8));
     assert_eq!(counts.get("RMC"), Some(&8));
     assert_eq!(counts.get("GST"), Some(&7));
+    assert_eq!(counts.get("GBS"), Some(&7));
     assert_eq!(counts.get("HDT"), Some(&7));
     // Exact position of frame 0 (the origin) and the date of frame 3.
     let first = ::nmea::parse_str(text.lines().next().unwrap()).unwrap();
