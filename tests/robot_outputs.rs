@@ -53,7 +53,13 @@ fn replayed() -> &'static Replayed {
         let drive = dir.path().join("drive");
         let out = dir.path().join("replay");
         let o = vgps(&[
-            "simulate", "--preset", "short", "--length-m", "80", "--quiet", "--out",
+            "simulate",
+            "--preset",
+            "short",
+            "--length-m",
+            "80",
+            "--quiet",
+            "--out",
             drive.to_str().unwrap(),
         ]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -83,7 +89,13 @@ fn read_fixes_csv(path: &Path) -> Vec<CsvFix> {
     let mut reader = csv::Reader::from_path(path).unwrap();
     let headers = reader.headers().unwrap().clone();
     let col = |name: &str| headers.iter().position(|h| h == name).unwrap();
-    let (t, status, lat, lon, alt) = (col("time_s"), col("status"), col("lat"), col("lon"), col("alt"));
+    let (t, status, lat, lon, alt) = (
+        col("time_s"),
+        col("status"),
+        col("lat"),
+        col("lon"),
+        col("alt"),
+    );
     let sigma = [col("sigma_e_m"), col("sigma_n_m"), col("sigma_u_m")];
     reader
         .records()
@@ -109,7 +121,9 @@ fn have(program: &str, why: &str) -> bool {
         .output()
         .is_ok_and(|o| o.status.success());
     if !found {
-        println!("SKIPPED {why}: `{program}` is not installed (Debian: apt-get install gpsd gpsd-clients; .ci/run installs it)");
+        println!(
+            "SKIPPED {why}: `{program}` is not installed (Debian: apt-get install gpsd gpsd-clients; .ci/run installs it)"
+        );
     }
     found
 }
@@ -134,7 +148,11 @@ impl Drop for Guard {
 
 /// Runs `gpspipe -w` against the gpsd on `port` (retrying until gpsd listens) until it
 /// ends or `limit` passes; returns its JSON lines.
-fn gpspipe(port: u16, limit: Duration, until_done: &mut dyn FnMut() -> bool) -> Vec<serde_json::Value> {
+fn gpspipe(
+    port: u16,
+    limit: Duration,
+    until_done: &mut dyn FnMut() -> bool,
+) -> Vec<serde_json::Value> {
     let start = Instant::now();
     loop {
         let mut child = Guard(
@@ -176,20 +194,35 @@ fn gpspipe(port: u16, limit: Duration, until_done: &mut dyn FnMut() -> bool) -> 
     }
 }
 
-fn unix_time(iso: &str) -> f64 {
-    let t = time::OffsetDateTime::parse(iso, &time::format_description::well_known::Rfc3339).unwrap();
-    t.unix_timestamp_nanos() as f64 * 1e-9
+/// Seconds of the UTC day of gpsd's `YYYY-MM-DDThh:mm:ss.sssZ`.
+fn time_of_day(iso: &str) -> f64 {
+    let clock = &iso[11..iso.len() - 1];
+    let mut parts = clock.split(':').map(|p| p.parse::<f64>().unwrap());
+    let (h, m, s) = (
+        parts.next().unwrap(),
+        parts.next().unwrap(),
+        parts.next().unwrap(),
+    );
+    h * 3600.0 + m * 60.0 + s
 }
+
+/// Only one gpsd at a time: gpsd instances share a System V memory segment.
+static GPSD: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 /// Checks gpsd's TPV reports against `fixes.csv`; returns (3-D fixes matched, of them with
 /// σ, worst position error m, worst relative σ error).
 fn check_tpv(reports: &[serde_json::Value], fixes: &[CsvFix]) -> (usize, usize, f64, f64) {
     let (mut matched, mut with_sigma, mut worst_m, mut worst_sigma) = (0, 0, 0.0f64, 0.0f64);
-    for r in reports.iter().filter(|r| r["class"] == "TPV" && r["mode"] == 3) {
-        let Some(t) = r["time"].as_str().map(unix_time) else { continue };
+    for r in reports
+        .iter()
+        .filter(|r| r["class"] == "TPV" && r["mode"] == 3)
+    {
+        let Some(t) = r["time"].as_str().map(time_of_day) else {
+            continue;
+        };
         let f = fixes
             .iter()
-            .find(|f| (f.time_s - t).abs() < 0.006)
+            .find(|f| (f.time_s.rem_euclid(86_400.0) - t).abs() < 0.006)
             .unwrap_or_else(|| panic!("gpsd reports a fix at {t} that fixes.csv has not: {r}"));
         let lat = r["lat"].as_f64().unwrap();
         let lon = r["lon"].as_f64().unwrap();
@@ -200,7 +233,9 @@ fn check_tpv(reports: &[serde_json::Value], fixes: &[CsvFix]) -> (usize, usize, 
         assert!(error <= POSITION_TOLERANCE_M, "{error} m at {t}: {r}");
         worst_m = worst_m.max(error);
         matched += 1;
-        if let (Some(epx), Some(epy), Some(epv)) = (r["epx"].as_f64(), r["epy"].as_f64(), r["epv"].as_f64()) {
+        if let (Some(epx), Some(epy), Some(epv)) =
+            (r["epx"].as_f64(), r["epy"].as_f64(), r["epv"].as_f64())
+        {
             for (got, want) in [epx, epy, epv].into_iter().zip(f.sigma_enu) {
                 let relative = (got - want).abs() / want;
                 assert!(relative <= SIGMA_TOLERANCE, "σ {got} vs {want} at {t}: {r}");
@@ -214,10 +249,16 @@ fn check_tpv(reports: &[serde_json::Value], fixes: &[CsvFix]) -> (usize, usize, 
 
 #[test]
 fn gpsd_reads_fixes_nmea_through_gpsfake() {
-    if !have("gpsfake", "gpsfake test") || !have("gpspipe", "gpsfake test") {
+    if !have("gpsd", "gpsfake test")
+        || !have("gpsfake", "gpsfake test")
+        || !have("gpspipe", "gpsfake test")
+    {
         return;
     }
     let r = replayed();
+    let _one_gpsd = GPSD
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
     let port = free_port();
     // gpsfake waits for the first client before feeding; 5 ms between sentences keeps
     // gpsd's epochs apart (fed at once, gpsd merges them).
@@ -238,8 +279,16 @@ fn gpsd_reads_fixes_nmea_through_gpsfake() {
         worst_m * 1e3,
         worst_sigma * 100.0
     );
-    assert!(matched + 2 >= r.fixes.len(), "{matched} of {}", r.fixes.len());
-    assert!(with_sigma + 3 >= r.fixes.len(), "{with_sigma} of {}", r.fixes.len());
+    assert!(
+        matched + 2 >= r.fixes.len(),
+        "{matched} of {}",
+        r.fixes.len()
+    );
+    assert!(
+        with_sigma + 3 >= r.fixes.len(),
+        "{with_sigma} of {}",
+        r.fixes.len()
+    );
 }
 
 #[test]
@@ -248,12 +297,23 @@ fn gpsd_reads_the_live_stream() {
         return;
     }
     let r = replayed();
+    let _one_gpsd = GPSD
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
     let (nmea_port, gpsd_port) = (free_port(), free_port());
     let address = format!("127.0.0.1:{nmea_port}");
     let out = r.out.parent().unwrap().join("live");
     let replay = Guard(
         Command::new(env!("CARGO_BIN_EXE_vgps"))
-            .args(["replay", r.drive.to_str().unwrap(), "--quiet", "--pace", "real", "--nmea-tcp", &address])
+            .args([
+                "replay",
+                r.drive.to_str().unwrap(),
+                "--quiet",
+                "--pace",
+                "real",
+                "--nmea-tcp",
+                &address,
+            ])
             .arg("--out")
             .arg(&out)
             .stdout(Stdio::null())
@@ -264,7 +324,10 @@ fn gpsd_reads_the_live_stream() {
     // Wait for the stream to listen; this probe is a client that leaves at once.
     let start = Instant::now();
     while TcpStream::connect(&address).is_err() {
-        assert!(start.elapsed() < Duration::from_secs(20), "vgps does not listen on {address}");
+        assert!(
+            start.elapsed() < Duration::from_secs(20),
+            "vgps does not listen on {address}"
+        );
         std::thread::sleep(Duration::from_millis(20));
     }
     let _gpsd = Guard(
@@ -289,7 +352,10 @@ fn gpsd_reads_the_live_stream() {
     std::io::Read::read_to_string(&mut replay.0.stderr.take().unwrap(), &mut stderr).unwrap();
     assert!(status.success(), "{stderr}");
     assert!(stderr.contains("client 127.0.0.1:"), "{stderr}");
-    assert!(out.join("fixes.csv").exists(), "the replay's files are written");
+    assert!(
+        out.join("fixes.csv").exists(),
+        "the replay's files are written"
+    );
     let (matched, with_sigma, worst_m, worst_sigma) = check_tpv(&reports, &r.fixes);
     println!(
         "live: {matched} 3-D fixes of {} ({with_sigma} with σ), worst position {:.2} mm, worst σ {:.1} %",
@@ -298,8 +364,16 @@ fn gpsd_reads_the_live_stream() {
         worst_sigma * 100.0
     );
     // gpsd connects while the stream runs: the first fixes may go by before it does.
-    assert!(matched * 10 >= r.fixes.len() * 8, "{matched} of {}", r.fixes.len());
-    assert!(with_sigma * 10 >= r.fixes.len() * 8, "{with_sigma} of {}", r.fixes.len());
+    assert!(
+        matched * 10 >= r.fixes.len() * 8,
+        "{matched} of {}",
+        r.fixes.len()
+    );
+    assert!(
+        with_sigma * 10 >= r.fixes.len() * 8,
+        "{with_sigma} of {}",
+        r.fixes.len()
+    );
 }
 
 #[test]
@@ -309,39 +383,72 @@ fn an_address_in_use_leaves_the_replay_and_its_files() {
     let address = taken.local_addr().unwrap().to_string();
     let out = r.out.parent().unwrap().join("in-use");
     let o = vgps(&[
-        "replay", r.drive.to_str().unwrap(), "--quiet", "--pace", "fast", "--nmea-tcp", &address,
-        "--out", out.to_str().unwrap(),
+        "replay",
+        r.drive.to_str().unwrap(),
+        "--quiet",
+        "--pace",
+        "fast",
+        "--nmea-tcp",
+        &address,
+        "--out",
+        out.to_str().unwrap(),
     ]);
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{stderr}");
     assert!(
-        stderr.contains(&format!("vgps: warning: --nmea-tcp: cannot listen on {address}: ")),
+        stderr.contains(&format!(
+            "vgps: warning: --nmea-tcp: cannot listen on {address}: "
+        )),
         "{stderr}"
     );
-    assert!(stderr.contains("the replay goes on without the live stream"), "{stderr}");
-    assert_eq!(std::fs::read(out.join("fixes.csv")).unwrap(), std::fs::read(r.out.join("fixes.csv")).unwrap());
+    assert!(
+        stderr.contains("the replay goes on without the live stream"),
+        "{stderr}"
+    );
+    assert_eq!(
+        std::fs::read(out.join("fixes.csv")).unwrap(),
+        std::fs::read(r.out.join("fixes.csv")).unwrap()
+    );
     // With nobody connecting, the replay says so and still writes its files.
     let out = r.out.parent().unwrap().join("nobody");
     let o = vgps(&[
-        "replay", r.drive.to_str().unwrap(), "--quiet", "--pace", "fast", "--nmea-tcp", "127.0.0.1:0",
-        "--out", out.to_str().unwrap(),
+        "replay",
+        r.drive.to_str().unwrap(),
+        "--quiet",
+        "--pace",
+        "fast",
+        "--nmea-tcp",
+        "127.0.0.1:0",
+        "--out",
+        out.to_str().unwrap(),
     ]);
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{stderr}");
-    assert!(stderr.contains("no client connected during the replay"), "{stderr}");
+    assert!(
+        stderr.contains("no client connected during the replay"),
+        "{stderr}"
+    );
     assert!(out.join("fixes.nmea").exists());
 }
 
 #[test]
 fn the_mcap_file_reads_back_with_mcap_ros2_support() {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/read_mcap_ros2.py");
-    let probe = Command::new("python3").args(["-c", "import mcap_ros2.decoder"]).output();
+    let probe = Command::new("python3")
+        .args(["-c", "import mcap_ros2.decoder"])
+        .output();
     if !probe.is_ok_and(|o| o.status.success()) {
-        println!("SKIPPED MCAP read-back: python3 with mcap-ros2-support is not installed (pip install -r tests/python/requirements.txt; .ci/run installs it)");
+        println!(
+            "SKIPPED MCAP read-back: python3 with mcap-ros2-support is not installed (pip install -r tests/python/requirements.txt; .ci/run installs it)"
+        );
         return;
     }
     let r = replayed();
-    let o = Command::new("python3").arg(&script).arg(r.out.join("fixes.mcap")).output().unwrap();
+    let o = Command::new("python3")
+        .arg(&script)
+        .arg(r.out.join("fixes.mcap"))
+        .output()
+        .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let rows: Vec<serde_json::Value> = String::from_utf8(o.stdout)
         .unwrap()
@@ -355,9 +462,17 @@ fn the_mcap_file_reads_back_with_mcap_ros2_support() {
     let nav = of("sensor_msgs/msg/NavSatFix");
     let pose = of("geometry_msgs/msg/PoseWithCovarianceStamped");
     let imu = of("sensor_msgs/msg/Imu");
-    assert_eq!((nav.len(), pose.len(), imu.len()), (r.fixes.len(), r.fixes.len(), r.fixes.len()));
+    assert_eq!(
+        (nav.len(), pose.len(), imu.len()),
+        (r.fixes.len(), r.fixes.len(), r.fixes.len())
+    );
     let covariance = |m: &serde_json::Value| -> Vec<f64> {
-        m["covariance"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect()
+        m["covariance"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
     };
     // σ in fixes.csv has 3 decimals: the covariance's σ rounds to it.
     let same_sigma = |variance: f64, sigma: f64| (variance.sqrt() - sigma).abs() <= 0.000_5 + 1e-9;
@@ -365,7 +480,10 @@ fn the_mcap_file_reads_back_with_mcap_ros2_support() {
         let (n, p) = (nav[k], pose[k]);
         let stamp = n["stamp"][0].as_f64().unwrap() + n["stamp"][1].as_f64().unwrap() * 1e-9;
         assert!((stamp - f.time_s).abs() < 1e-6, "{stamp} {}", f.time_s);
-        assert_eq!((n["status"].as_i64(), n["service"].as_i64()), (Some(0), Some(0)));
+        assert_eq!(
+            (n["status"].as_i64(), n["service"].as_i64()),
+            (Some(0), Some(0))
+        );
         assert_eq!(n["covariance_type"].as_i64(), Some(3));
         assert_eq!(n["frame_id"], "vgps_rig");
         assert_eq!(p["frame_id"], "map");
@@ -374,11 +492,23 @@ fn the_mcap_file_reads_back_with_mcap_ros2_support() {
         assert!((n["alt"].as_f64().unwrap() - f.alt).abs() < 1e-3);
         let (cn, cp) = (covariance(n), covariance(p));
         for axis in 0..3 {
-            assert!(same_sigma(cn[4 * axis], f.sigma_enu[axis]), "NavSatFix {k} axis {axis}: {cn:?} {f:?}");
-            assert!(same_sigma(cp[7 * axis], f.sigma_enu[axis]), "Pose {k} axis {axis}: {cp:?} {f:?}");
+            assert!(
+                same_sigma(cn[4 * axis], f.sigma_enu[axis]),
+                "NavSatFix {k} axis {axis}: {cn:?} {f:?}"
+            );
+            assert!(
+                same_sigma(cp[7 * axis], f.sigma_enu[axis]),
+                "Pose {k} axis {axis}: {cp:?} {f:?}"
+            );
         }
         let ci = covariance(imu[k]);
         assert!((0..3).all(|a| ci[4 * a] > 0.0), "{ci:?}");
     }
-    println!("mcap-ros2-support read {} NavSatFix, {} Pose, {} Imu for {} fixes", nav.len(), pose.len(), imu.len(), r.fixes.len());
+    println!(
+        "mcap-ros2-support read {} NavSatFix, {} Pose, {} Imu for {} fixes",
+        nav.len(),
+        pose.len(),
+        imu.len(),
+        r.fixes.len()
+    );
 }

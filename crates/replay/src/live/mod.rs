@@ -175,15 +175,15 @@ impl NmeaTcpServer {
         }
         let mut shared = lock(&self.shared);
         let mut dropped = Vec::new();
-        shared.clients.retain_mut(|(peer, stream)| {
-            match stream.write_all(text.as_bytes()) {
+        shared
+            .clients
+            .retain_mut(|(peer, stream)| match stream.write_all(text.as_bytes()) {
                 Ok(()) => true,
                 Err(e) => {
                     dropped.push(format!("client {peer} dropped: {e}"));
                     false
                 }
-            }
-        });
+            });
         let n = shared.clients.len();
         shared.messages.extend(dropped);
         drop(shared);
@@ -290,7 +290,10 @@ mod tests {
         let first = NmeaTcpServer::bind("127.0.0.1:0").unwrap();
         let address = first.local_addr().to_string();
         let err = NmeaTcpServer::bind(&address).unwrap_err().to_string();
-        assert!(err.starts_with(&format!("cannot listen on {address}: ")), "{err}");
+        assert!(
+            err.starts_with(&format!("cannot listen on {address}: ")),
+            "{err}"
+        );
         assert!(err.to_lowercase().contains("in use"), "{err}");
         let err = NmeaTcpServer::bind("no port").unwrap_err().to_string();
         assert!(err.starts_with("cannot listen on no port: "), "{err}");
@@ -316,7 +319,10 @@ mod tests {
         }
         assert_eq!(n, 1);
         let messages = server.take_messages();
-        assert!(messages.iter().any(|m| m.contains("dropped")), "{messages:?}");
+        assert!(
+            messages.iter().any(|m| m.contains("dropped")),
+            "{messages:?}"
+        );
         assert_eq!(server.clients_ever(), 2);
         drop(server);
         let mut text = String::new();

@@ -332,14 +332,20 @@ fn nmea_checksums_and_round_trip() {
             ::nmea::ParseResult::RMC(_) => "RMC",
             ::nmea::ParseResult::GST(g) => {
                 // σ 1 m east and north, 2 m up: a circle of 1 m.
-                assert_eq!((g.lat_sd, g.long_sd, g.alt_sd), (Some(1.0), Some(1.0), Some(2.0)));
+                assert_eq!(
+                    (g.lat_sd, g.long_sd, g.alt_sd),
+                    (Some(1.0), Some(1.0), Some(2.0))
+                );
                 assert_eq!(g.ellipse_semi_major_sd, Some(1.0));
                 assert_eq!(g.ellipse_semi_minor_sd, Some(1.0));
                 assert_eq!(g.rms_sd, None);
                 "GST"
             }
             ::nmea::ParseResult::GBS(g) => {
-                assert_eq!((g.lat_error, g.lon_error, g.alt_error), (Some(1.0), Some(1.0), Some(2.0)));
+                assert_eq!(
+                    (g.lat_error, g.lon_error, g.alt_error),
+                    (Some(1.0), Some(1.0), Some(2.0))
+                );
                 "GBS"
             }
             ::nmea::ParseResult::HDT(h) => {

@@ -82,11 +82,19 @@ pub fn fix_messages(
     // The covariance is in map's ENU axes; NavSatFix and Imu use ENU at the fix.
     let map_from_here = map.enu_here_from_enu_at(&fix.geodetic);
     let here_from_map = map_from_here.inverse();
-    let block = |r: usize| -> Matrix3<f64> { fix.pose_covariance.fixed_view::<3, 3>(r, r).into() };
+    let block =
+        |r: usize| -> Matrix3<f64> { fix.pose_covariance.fixed_view::<3, 3>(r, r).into_owned() };
     let position_cov = rotate_covariance(&here_from_map, &block(0));
     let attitude_cov = rotate_covariance(&here_from_map, &block(3));
     let g = &fix.geodetic;
-    let nav = msgs::nav_sat_fix(stamp, RIG_FRAME, g.lat_deg, g.lon_deg, g.alt_m, &position_cov);
+    let nav = msgs::nav_sat_fix(
+        stamp,
+        RIG_FRAME,
+        g.lat_deg,
+        g.lon_deg,
+        g.alt_m,
+        &position_cov,
+    );
     let map_from_rig =
         nalgebra::UnitQuaternion::from_rotation_matrix(&map_from_here) * fix.enu_from_rig;
     let pose = msgs::pose_with_covariance_stamped(
@@ -130,8 +138,8 @@ pub fn mcap_bytes(drive: &DriveInfo, records: &[FrameRecord]) -> Result<Vec<u8>,
         let Some((sec, nanosec)) = msgs::stamp(r.time_s) else {
             continue;
         };
-        let log_time = u64::try_from(i64::from(sec) * 1_000_000_000 + i64::from(nanosec))
-            .unwrap_or(0);
+        let log_time =
+            u64::try_from(i64::from(sec) * 1_000_000_000 + i64::from(nanosec)).unwrap_or(0);
         for (channel_id, data) in [(fix_channel, nav), (pose_channel, pose), (imu_channel, imu)] {
             writer.write_to_known_channel(
                 &mcap::records::MessageHeader {
@@ -153,7 +161,11 @@ pub fn mcap_bytes(drive: &DriveInfo, records: &[FrameRecord]) -> Result<Vec<u8>,
 ///
 /// # Errors
 /// [`RosOutError::Io`] naming the file, or [`RosOutError::Mcap`].
-pub fn write_mcap(path: &Path, drive: &DriveInfo, records: &[FrameRecord]) -> Result<(), RosOutError> {
+pub fn write_mcap(
+    path: &Path,
+    drive: &DriveInfo,
+    records: &[FrameRecord],
+) -> Result<(), RosOutError> {
     let bytes = mcap_bytes(drive, records)?;
     vgps_io::write_atomic(path, &bytes).map_err(|e| RosOutError::Io {
         path: path.display().to_string(),

@@ -194,7 +194,10 @@ mod tests {
 
     #[test]
     fn stamps_split_seconds_and_nanoseconds() {
-        assert_eq!(stamp(1_778_794_200.066_667), Some((1_778_794_200, 66_667_000)));
+        assert_eq!(
+            stamp(1_778_794_200.066_667),
+            Some((1_778_794_200, 66_667_000))
+        );
         assert_eq!(stamp(-0.25), Some((-1, 750_000_000)));
         assert_eq!(stamp(f64::NAN), None);
         assert_eq!(stamp(1e12), None);

@@ -68,7 +68,13 @@ fn visual(e: f64, n: f64) -> VisualFix {
         .try_to_geodetic(&Vector3::new(e, n, 1.0))
         .unwrap();
     // A full covariance: correlated east-north, up, and the attitude.
-    let l = Matrix6::from_fn(|i, j| if i >= j { 0.01 * (1.0 + (i + 2 * j) as f64) } else { 0.0 });
+    let l = Matrix6::from_fn(|i, j| {
+        if i >= j {
+            0.01 * (1.0 + (i + 2 * j) as f64)
+        } else {
+            0.0
+        }
+    });
     let cov = l * l.transpose();
     VisualFix {
         geodetic: g,
@@ -110,7 +116,13 @@ fn one_of_each_message_per_fix_with_the_fix_covariances() {
     for message in mcap::MessageStream::new(&bytes).unwrap() {
         let m = message.unwrap();
         let schema = m.channel.schema.as_ref().unwrap();
-        assert_eq!((schema.encoding.as_str(), m.channel.message_encoding.as_str()), ("ros2msg", "cdr"));
+        assert_eq!(
+            (
+                schema.encoding.as_str(),
+                m.channel.message_encoding.as_str()
+            ),
+            ("ros2msg", "cdr")
+        );
         let k = seen.entry(m.channel.topic.clone()).or_default();
         let r = fixes[*k];
         *k += 1;
@@ -125,7 +137,10 @@ fn one_of_each_message_per_fix_with_the_fix_covariances() {
                 assert_eq!(frame_id, RIG_FRAME);
                 assert_eq!((c.i8(), c.u16()), (msgs::STATUS_FIX, msgs::SERVICE_NONE));
                 let [lat, lon, alt] = c.f64s::<3>();
-                assert_eq!((lat, lon, alt), (v.geodetic.lat_deg, v.geodetic.lon_deg, v.geodetic.alt_m));
+                assert_eq!(
+                    (lat, lon, alt),
+                    (v.geodetic.lat_deg, v.geodetic.lon_deg, v.geodetic.alt_m)
+                );
                 let cov = c.f64s::<9>();
                 // ENU at the fix is within a few µrad of the map's: the same covariance.
                 for (k, x) in cov.iter().enumerate() {
@@ -153,7 +168,15 @@ fn one_of_each_message_per_fix_with_the_fix_covariances() {
                 assert_eq!(schema.name, msgs::IMU);
                 assert_eq!(frame_id, RIG_FRAME);
                 let [x, y, z, w] = c.f64s::<4>();
-                assert_eq!((x, y, z, w), (v.enu_from_rig.i, v.enu_from_rig.j, v.enu_from_rig.k, v.enu_from_rig.w));
+                assert_eq!(
+                    (x, y, z, w),
+                    (
+                        v.enu_from_rig.i,
+                        v.enu_from_rig.j,
+                        v.enu_from_rig.k,
+                        v.enu_from_rig.w
+                    )
+                );
                 let cov = c.f64s::<9>();
                 for (k, x) in cov.iter().enumerate() {
                     let expected = v.pose_covariance[(3 + k / 3, 3 + k % 3)];
