@@ -92,14 +92,20 @@ float64[9] linear_acceleration_covariance\n",
 /// A `builtin_interfaces/Time` from Unix seconds: whole seconds (floor) and nanoseconds
 /// in [0, 1e9). `None` when the time does not fit an `int32` of seconds.
 pub fn stamp(time_s: f64) -> Option<(i32, u32)> {
-    let total_ns = (time_s * 1e9).round();
-    if !total_ns.is_finite() {
+    if !time_s.is_finite() {
         return None;
     }
-    let sec = (total_ns / 1e9).floor();
-    let nanosec = total_ns - sec * 1e9;
-    let sec = i32::try_from(sec as i64).ok()?;
-    Some((sec, (nanosec as u32).min(999_999_999)))
+    // Split before scaling: 1e9 × a Unix time exceeds f64's 53-bit integers.
+    let mut sec = time_s.floor();
+    let mut nanosec = ((time_s - sec) * 1e9).round();
+    if nanosec >= 1e9 {
+        sec += 1.0;
+        nanosec = 0.0;
+    }
+    if !(f64::from(i32::MIN)..=f64::from(i32::MAX)).contains(&sec) {
+        return None;
+    }
+    Some((sec as i32, nanosec as u32))
 }
 
 fn header(w: &mut CdrWriter, (sec, nanosec): (i32, u32), frame_id: &str) {

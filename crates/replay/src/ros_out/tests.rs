@@ -130,7 +130,7 @@ fn one_of_each_message_per_fix_with_the_fix_covariances() {
         let mut c = Reader::new(&m.data);
         let (sec, nanosec, frame_id) = c.header();
         assert!((f64::from(sec) + f64::from(nanosec) * 1e-9 - r.time_s).abs() < 1e-6);
-        assert_eq!(m.log_time, (r.time_s * 1e9).round() as u64);
+        assert_eq!(m.log_time, sec as u64 * 1_000_000_000 + u64::from(nanosec));
         match m.channel.topic.as_str() {
             TOPIC_FIX => {
                 assert_eq!(schema.name, msgs::NAV_SAT_FIX);
@@ -142,14 +142,15 @@ fn one_of_each_message_per_fix_with_the_fix_covariances() {
                     (v.geodetic.lat_deg, v.geodetic.lon_deg, v.geodetic.alt_m)
                 );
                 let cov = c.f64s::<9>();
-                // ENU at the fix is within a few µrad of the map's: the same covariance.
+                // ENU at the fix is within 10 µrad of the map's: the same covariance but for
+                // that rotation.
                 for (k, x) in cov.iter().enumerate() {
                     let expected = v.pose_covariance[(k / 3, k % 3)];
-                    assert!((x - expected).abs() < 1e-9, "{k}: {x} {expected}");
+                    assert!((x - expected).abs() < 1e-7, "{k}: {x} {expected}");
                 }
-                assert!((cov[0].sqrt() - v.sigma_e_m).abs() < 1e-9);
-                assert!((cov[4].sqrt() - v.sigma_n_m).abs() < 1e-9);
-                assert!((cov[8].sqrt() - v.sigma_u_m).abs() < 1e-9);
+                assert!((cov[0].sqrt() - v.sigma_e_m).abs() < 1e-6);
+                assert!((cov[4].sqrt() - v.sigma_n_m).abs() < 1e-6);
+                assert!((cov[8].sqrt() - v.sigma_u_m).abs() < 1e-6);
                 assert_eq!(c.u8(), msgs::COVARIANCE_TYPE_KNOWN);
             }
             TOPIC_POSE => {
@@ -180,7 +181,7 @@ fn one_of_each_message_per_fix_with_the_fix_covariances() {
                 let cov = c.f64s::<9>();
                 for (k, x) in cov.iter().enumerate() {
                     let expected = v.pose_covariance[(3 + k / 3, 3 + k % 3)];
-                    assert!((x - expected).abs() < 1e-9, "{k}: {x} {expected}");
+                    assert!((x - expected).abs() < 1e-7, "{k}: {x} {expected}");
                 }
                 for _ in 0..2 {
                     assert_eq!(c.f64s::<3>(), [0.0; 3]);
