@@ -62,6 +62,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 sigma_n_m: sigma,
                 sigma_u_m: 0.8,
                 horizontal_covariance_m2: Matrix2::identity() * sigma * sigma,
+                pose_covariance: nalgebra::Matrix6::from_diagonal(&nalgebra::Vector6::new(
+                    sigma * sigma,
+                    sigma * sigma,
+                    0.64,
+                    1e-6,
+                    1e-6,
+                    1e-6,
+                )),
                 n_landmarks: if surrogate { 1 } else { 6 },
                 n_surrogates: if surrogate { 5 } else { 0 },
             })

@@ -162,6 +162,7 @@ fn replay_settings(
         detector: vgps_replay::frame_images::DetectorKind::Point,
         gnss: Default::default(),
         mcap: Default::default(),
+        robot: Default::default(),
     }
 }
 

@@ -21,6 +21,7 @@ pub mod import;
 pub mod locate;
 pub mod map;
 pub mod replay;
+pub mod robot_out;
 pub mod settings;
 pub mod simulate;
 pub mod triangulate;

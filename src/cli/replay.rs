@@ -10,12 +10,11 @@
 //! runs, on one thread.
 
 use super::{CliError, ReplaySettings};
-use nalgebra::Matrix2;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use vgps_core::localizer::{
-    Frame, GnssPosition, LandmarkMap, Localizer, LocalizerFix, LocalizerOptions, LocalizerStatus,
+    Frame, GnssPosition, LandmarkMap, Localizer, LocalizerFix, LocalizerOptions,
 };
 use vgps_replay::drive::gnss::gnss_at;
 use vgps_replay::drive::{Drive, FrameStatus};
@@ -83,6 +82,9 @@ pub struct ReplayArgs {
     /// An MCAP recording as DRIVE (imported into a temporary drive, removed afterwards).
     #[command(flatten)]
     pub mcap: super::import::McapInputArgs,
+    /// Live NMEA for gpsd and ROS 2 messages.
+    #[command(flatten)]
+    pub robot: super::robot_out::RobotOutputArgs,
 }
 
 /// The detections of one frame, or why there are none; `unusable_images` counts the
@@ -179,6 +181,7 @@ pub fn run(
     });
     let mut records = Vec::with_capacity(frames.len());
     let detector = ImageDetector::new(settings.detector, drive.rig());
+    let mut live = super::robot_out::LiveStream::start(&settings.robot, err);
     for batch in frames.chunks(BATCH_FRAMES) {
         let detections: Vec<FrameDetections> = if from_images {
             detect_batch(&drive, batch, settings.threads, &detector)
@@ -192,7 +195,9 @@ pub fn run(
                 localizer: &mut localizer,
                 gnss_prior: settings.gnss_prior,
             };
-            records.push(step.record(f, d, err));
+            let record = step.record(f, d, err);
+            live.send(&record, err);
+            records.push(record);
         }
         if let Some(bar) = &progress {
             bar.inc(batch.len() as u64);
@@ -205,8 +210,10 @@ pub fn run(
         name: drive_name(&settings.drive),
         origin: map.frame().origin(),
     };
+    live.finish(err);
     let (report, _files) = vgps_replay::report::write_outputs(out_dir, &info, &records)
         .map_err(|e| CliError::Output(std::io::Error::other(e.to_string())))?;
+    super::robot_out::write_mcap(&settings.robot, &info, &records)?;
     write_summary(&report, settings, out_dir, out)
 }
 
@@ -342,30 +349,7 @@ fn drive_name(dir: &Path) -> String {
 
 /// The report's view of a localizer fix.
 fn visual_of(fix: &LocalizerFix) -> Option<VisualFix> {
-    let e = fix.estimate.as_ref()?;
-    if fix.status != LocalizerStatus::Ok {
-        return None;
-    }
-    let [heading_deg, pitch_deg, roll_deg] = e.heading_pitch_roll.to_degrees();
-    let [sigma_e_m, sigma_n_m, sigma_u_m] = e.sigma_enu_m();
-    Some(VisualFix {
-        geodetic: e.geodetic,
-        heading_deg,
-        pitch_deg,
-        roll_deg,
-        enu_from_rig: e.enu_from_rig,
-        sigma_e_m,
-        sigma_n_m,
-        sigma_u_m,
-        horizontal_covariance_m2: Matrix2::new(
-            e.covariance[(0, 0)],
-            e.covariance[(0, 1)],
-            e.covariance[(1, 0)],
-            e.covariance[(1, 1)],
-        ),
-        n_landmarks: e.landmarks.len(),
-        n_surrogates: e.surrogates.len(),
-    })
+    VisualFix::from_localizer(fix)
 }
 
 /// Decodes and detects the images of a batch of frames on `threads` threads.

@@ -112,6 +112,8 @@ pub struct ReplaySettings {
     pub gnss: GnssInputArgs,
     /// The options of an MCAP recording given as the drive.
     pub mcap: super::import::McapInputArgs,
+    /// The live NMEA stream and the MCAP file.
+    pub robot: super::robot_out::RobotOutputArgs,
 }
 
 /// Validated settings of `vgps detect`.
@@ -301,6 +303,7 @@ impl TryFrom<ReplayArgs> for ReplaySettings {
             detector: a.detector.into(),
             gnss: a.gnss,
             mcap: a.mcap,
+            robot: a.robot,
         })
     }
 }

@@ -64,8 +64,8 @@ pub use atomic::write_atomic;
 pub use csv_out::{FIXES_COLUMNS, IMAGE_COLUMNS, TRUTH_COLUMNS, fixes_csv};
 pub use html::report_html;
 pub use nmea::{
-    GGA_QUALITY_ESTIMATED, GGA_QUALITY_FIX, MAX_VELOCITY_GAP_S, NMEA_TALKER, fixes_nmea,
-    nmea_checksum,
+    GGA_QUALITY_VISUAL, MAX_VELOCITY_GAP_S, NMEA_TALKER, NmeaEpochWriter, error_ellipse,
+    fixes_nmea, nmea_checksum,
 };
 pub use plot::{PLOT_HEIGHT_PX, PLOT_WIDTH_PX, plot_error_png, plot_track_png};
 pub use stats::{
@@ -76,7 +76,7 @@ pub use text::summary_table;
 pub use time::utc_iso8601;
 pub use tracks::{track_geojson, track_gpx, track_kml};
 
-use nalgebra::{Matrix2, UnitQuaternion};
+use nalgebra::{Matrix2, Matrix6, UnitQuaternion};
 use std::path::{Path, PathBuf};
 use vgps_geometry::geo::Geodetic;
 
@@ -115,6 +115,12 @@ pub struct VisualFix {
     /// (the rotation between the ENU frame at the fix and at the drive origin is below a
     /// milliradian over 10 km and is neglected).
     pub horizontal_covariance_m2: Matrix2<f64>,
+    /// Covariance of the pose `[δE, δN, δU (m), δθE, δθN, δθU (rad)]` in the drive's ENU
+    /// frame, the attitude error a small rotation about the ENU axes (`world_from_rig`
+    /// perturbed on the left, ROS's fixed-axis convention). Its east-north block is
+    /// `horizontal_covariance_m2`, its diagonal square roots `sigma_e_m`, `sigma_n_m`,
+    /// `sigma_u_m`.
+    pub pose_covariance: Matrix6<f64>,
     /// Number of surveyed landmarks among the inliers.
     pub n_landmarks: usize,
     /// Number of surrogate landmarks (mapped, not surveyed) among the inliers.
@@ -122,6 +128,31 @@ pub struct VisualFix {
 }
 
 impl VisualFix {
+    /// The report's view of a localizer fix: `None` unless its status is
+    /// [`LocalizerStatus::Ok`](vgps_core::localizer::LocalizerStatus::Ok) with an estimate.
+    pub fn from_localizer(fix: &vgps_core::localizer::LocalizerFix) -> Option<Self> {
+        let e = fix.estimate.as_ref()?;
+        if fix.status != vgps_core::localizer::LocalizerStatus::Ok {
+            return None;
+        }
+        let [heading_deg, pitch_deg, roll_deg] = e.heading_pitch_roll.to_degrees();
+        let [sigma_e_m, sigma_n_m, sigma_u_m] = e.sigma_enu_m();
+        Some(Self {
+            geodetic: e.geodetic,
+            heading_deg,
+            pitch_deg,
+            roll_deg,
+            enu_from_rig: e.enu_from_rig,
+            sigma_e_m,
+            sigma_n_m,
+            sigma_u_m,
+            horizontal_covariance_m2: e.covariance.fixed_view::<2, 2>(0, 0).into_owned(),
+            pose_covariance: e.covariance,
+            n_landmarks: e.landmarks.len(),
+            n_surrogates: e.surrogates.len(),
+        })
+    }
+
     /// True when the fix rests on surrogates only: fewer than [`MIN_SURVEYED_LANDMARKS`]
     /// surveyed landmarks and at least one surrogate.
     pub fn is_surrogate_only(&self) -> bool {
