@@ -23,6 +23,8 @@ use crate::drive_out::{
 };
 use crate::mcap_read::{McapMessage, McapReadSummary, read_mcap_file};
 use crate::ros_decode;
+use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+use image::{ExtendedColorType, ImageEncoder};
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use vgps_geometry::geo::Geodetic;
@@ -366,19 +368,13 @@ fn compressed_extension(format: &str, data: &[u8]) -> Result<&'static str, Strin
 /// A `sensor_msgs/Image` as PNG (`mono8`, `8UC1`, `mono16`, `16UC1`, `rgb8`, `bgr8`, `rgba8`,
 /// `bgra8`).
 fn raw_to_png(img: &ros_decode::RawImage<'_>) -> Result<Vec<u8>, String> {
-    let (color, depth, channels, bytes, swap_rb) = match img.encoding {
-        "mono8" | "8UC1" => (png::ColorType::Grayscale, png::BitDepth::Eight, 1, 1, false),
-        "mono16" | "16UC1" => (
-            png::ColorType::Grayscale,
-            png::BitDepth::Sixteen,
-            1,
-            2,
-            false,
-        ),
-        "rgb8" => (png::ColorType::Rgb, png::BitDepth::Eight, 3, 1, false),
-        "bgr8" => (png::ColorType::Rgb, png::BitDepth::Eight, 3, 1, true),
-        "rgba8" => (png::ColorType::Rgba, png::BitDepth::Eight, 4, 1, false),
-        "bgra8" => (png::ColorType::Rgba, png::BitDepth::Eight, 4, 1, true),
+    let (color, channels, bytes, swap_rb) = match img.encoding {
+        "mono8" | "8UC1" => (ExtendedColorType::L8, 1, 1, false),
+        "mono16" | "16UC1" => (ExtendedColorType::L16, 1, 2, false),
+        "rgb8" => (ExtendedColorType::Rgb8, 3, 1, false),
+        "bgr8" => (ExtendedColorType::Rgb8, 3, 1, true),
+        "rgba8" => (ExtendedColorType::Rgba8, 4, 1, false),
+        "bgra8" => (ExtendedColorType::Rgba8, 4, 1, true),
         other => return Err(format!("raw image encoding `{other}` is not supported")),
     };
     let (w, h) = (u64::from(img.width), u64::from(img.height));
@@ -405,22 +401,16 @@ fn raw_to_png(img: &ros_decode::RawImage<'_>) -> Result<Vec<u8>, String> {
             p.swap(0, 2);
         }
     }
-    if bytes == 2 && !img.is_bigendian {
-        // PNG stores 16-bit samples big-endian.
+    if bytes == 2 && img.is_bigendian != cfg!(target_endian = "big") {
+        // The encoder takes 16-bit samples in native byte order.
         for p in pixels.chunks_exact_mut(2) {
             p.swap(0, 1);
         }
     }
     let mut out = Vec::new();
-    let mut encoder = png::Encoder::new(&mut out, img.width, img.height);
-    encoder.set_color(color);
-    encoder.set_depth(depth);
-    encoder.set_compression(png::Compression::Fast);
-    let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
-    writer
-        .write_image_data(&pixels)
+    PngEncoder::new_with_quality(&mut out, CompressionType::Fast, FilterType::Adaptive)
+        .write_image(&pixels, img.width, img.height, color)
         .map_err(|e| e.to_string())?;
-    writer.finish().map_err(|e| e.to_string())?;
     Ok(out)
 }
 
@@ -532,11 +522,8 @@ mod tests {
             data: &data,
         };
         let png = raw_to_png(&img).unwrap();
-        let decoder = png::Decoder::new(std::io::Cursor::new(png));
-        let mut reader = decoder.read_info().unwrap();
-        let mut buf = vec![0; reader.output_buffer_size()];
-        reader.next_frame(&mut buf).unwrap();
-        assert_eq!(&buf[..6], &[3, 2, 1, 6, 5, 4]);
+        let decoded = image::load_from_memory_with_format(&png, image::ImageFormat::Png).unwrap();
+        assert_eq!(&decoded.to_rgb8().as_raw()[..6], &[3, 2, 1, 6, 5, 4]);
         let short = ros_decode::RawImage {
             data: &data[..5],
             ..img

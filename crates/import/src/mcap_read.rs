@@ -291,8 +291,7 @@ fn read_chunk(
     let limit = header
         .compressed_size
         .saturating_mul(MAX_CHUNK_RATIO)
-        .max(MIN_CHUNK_LIMIT_BYTES)
-        .min(MAX_CHUNK_BYTES);
+        .clamp(MIN_CHUNK_LIMIT_BYTES, MAX_CHUNK_BYTES);
     if header.uncompressed_size > limit {
         summary.bad_chunks += 1;
         summary.problem(

@@ -810,7 +810,7 @@ pub fn mcap_read(data: &[u8]) {
         vgps_import::mcap_read::read_mcap(std::path::Path::new("x.mcap"), data, &mut |m| {
             seen += 1;
             // Within the input, or within one decompressed chunk.
-        assert!(m.data.len() as u64 <= vgps_import::mcap_read::MAX_CHUNK_BYTES);
+            assert!(m.data.len() as u64 <= vgps_import::mcap_read::MAX_CHUNK_BYTES);
             ros_cdr(m.data);
         });
     if let Ok(summary) = result {

@@ -888,7 +888,7 @@ impl Localizer {
             MIN_TRACKED_CORRESPONDENCES,
         )
         .filter(|t| t.mean_chi2 <= MAX_MEAN_CHI2)
-        .filter(|t| redundant_enough(t, &candidates, &observations))
+        .filter(|t| redundant_enough(t, &candidates, observations))
         .ok_or((
             LocalizerStatus::NoFix,
             "the matcher's pose did not track".to_string(),

@@ -211,7 +211,7 @@ pub(super) type TruthRows = (Vec<TruthRecord>, Vec<Result<bool, String>>);
 pub(super) fn truth_rows(
     path: &Path,
     text: &str,
-    frames: &[Frame],
+    frames: &[FrameRecord],
 ) -> Result<TruthRows, InputError> {
     let (records, rows) = truth_rows_inner(path, text, frames)?;
     Ok((
@@ -226,7 +226,7 @@ pub(super) fn truth_rows(
 fn truth_rows_inner(
     path: &Path,
     text: &str,
-    frames: &[Frame],
+    frames: &[FrameRecord],
 ) -> Result<(Vec<TruthRecord>, Vec<Result<bool, InputError>>), InputError> {
     let cols = ["frame", "lat", "lon", "alt", "qw", "qx", "qy", "qz"];
     let expected = "frame,lat,lon,alt,qw,qx,qy,qz";
@@ -246,7 +246,7 @@ fn truth_rows_inner(
 
 fn truth_row(
     row: &Row<'_>,
-    frames: &[Frame],
+    frames: &[FrameRecord],
     previous: Option<&TruthRecord>,
 ) -> Result<(TruthRecord, bool), InputError> {
     let frame = unsigned(row, "frame")?;

@@ -86,39 +86,40 @@ pub fn fletcher(bytes: &[u8]) -> (u8, u8) {
 }
 
 /// One UBX frame found at the start of `bytes`: (class, id, payload, bytes taken).
-enum Frame<'a> {
+enum UbxFrame<'a> {
     Ok(u8, u8, &'a [u8], usize),
     BadChecksum,
     Truncated,
-    NotAFrame,
+    /// No sync bytes at the start.
+    NoSync,
 }
 
-fn frame_at(bytes: &[u8]) -> Frame<'_> {
+fn frame_at(bytes: &[u8]) -> UbxFrame<'_> {
     if bytes.len() < 6 || bytes[..2] != SYNC {
         return if bytes.len() < 6 && bytes.starts_with(&SYNC) {
-            Frame::Truncated
+            UbxFrame::Truncated
         } else {
-            Frame::NotAFrame
+            UbxFrame::NoSync
         };
     }
     let len = usize::from(u16::from_le_bytes([bytes[4], bytes[5]]));
     if len > MAX_PAYLOAD {
-        return Frame::NotAFrame;
+        return UbxFrame::NoSync;
     }
     let Some(sum) = bytes.get(6 + len..8 + len) else {
-        return Frame::Truncated;
+        return UbxFrame::Truncated;
     };
     if fletcher(&bytes[2..6 + len]) != (sum[0], sum[1]) {
-        return Frame::BadChecksum;
+        return UbxFrame::BadChecksum;
     }
-    Frame::Ok(bytes[2], bytes[3], &bytes[6..6 + len], 8 + len)
+    UbxFrame::Ok(bytes[2], bytes[3], &bytes[6..6 + len], 8 + len)
 }
 
 /// Whether `bytes` hold at least one UBX frame with a right checksum (format detection).
 pub fn contains_ubx(bytes: &[u8]) -> bool {
     let mut at = 0;
     while let Some(k) = find_sync(&bytes[at..]) {
-        if let Frame::Ok(..) = frame_at(&bytes[at + k..]) {
+        if let UbxFrame::Ok(..) = frame_at(&bytes[at + k..]) {
             return true;
         }
         at += k + 1;
@@ -242,7 +243,7 @@ pub fn read_ubx(bytes: &[u8]) -> (Vec<GnssRecord>, UbxStats) {
         rest.extend_from_slice(&bytes[at..at + k]);
         at += k;
         match frame_at(&bytes[at..]) {
-            Frame::Ok(class, id, payload, taken) => {
+            UbxFrame::Ok(class, id, payload, taken) => {
                 stats.frames += 1;
                 if (class, id) == NAV_PVT {
                     match nav_pvt(payload) {
@@ -259,19 +260,19 @@ pub fn read_ubx(bytes: &[u8]) -> (Vec<GnssRecord>, UbxStats) {
                 rest.push(b'\n');
                 at += taken;
             }
-            Frame::Truncated => {
+            UbxFrame::Truncated => {
                 // A frame cut by the end of the file, or sync bytes in noise whose length
                 // runs past it: counted, and the scan goes on one byte later.
                 stats.truncated += 1;
                 rest.extend_from_slice(&bytes[at..at + 1]);
                 at += 1;
             }
-            Frame::BadChecksum => {
+            UbxFrame::BadChecksum => {
                 stats.bad_checksum += 1;
                 rest.extend_from_slice(&bytes[at..at + 1]);
                 at += 1;
             }
-            Frame::NotAFrame => {
+            UbxFrame::NoSync => {
                 rest.extend_from_slice(&bytes[at..at + 1]);
                 at += 1;
             }
