@@ -8,8 +8,11 @@
 //!   one `PoseWithCovarianceStamped` and one `Imu` per fix, covariances equal to
 //!   `fixes.csv`'s σ.
 //!
-//! Without gpsd or the Python reader a test prints why it is skipped and passes; `.ci/run`
-//! installs both, so CI always runs them.
+//! Without gpsd or the Python reader a test prints why it is skipped and passes. The tests
+//! are ignored until they run on a drive with fixes (issue #28 is partial), so `.ci/run`
+//! does not install gpsd or the reader yet; run them with
+//! `cargo test --release --test robot_outputs -- --ignored` after
+//! `apt-get install gpsd gpsd-clients` and `pip install -r tests/python/requirements.txt`.
 
 mod common;
 

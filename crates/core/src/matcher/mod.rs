@@ -101,7 +101,7 @@ mod fast_math;
 pub mod nfa;
 mod pairs;
 mod scoring;
-mod scratch;
+pub(crate) mod scratch;
 mod search;
 
 pub use db::{DbLandmark, LandmarkDb};

@@ -1,6 +1,6 @@
 //! Small utilities of the search: the key of the per-triple P3P cache (hashed by
 //! `rustc_hash::FxBuildHasher`: the standard SipHash cost as much as a third of a P3P solve), the
-//! thread-local pool of cell buffers and bit sets.
+//! thread-local pool of cell buffers, bit sets and the crate's one shuffle.
 
 use super::pairs::CellData;
 use nalgebra::Vector3;
@@ -96,5 +96,16 @@ pub(super) fn for_each_bit(bits: &[u64], mut f: impl FnMut(usize)) {
             f(w * 64 + rest.trailing_zeros() as usize);
             rest &= rest - 1;
         }
+    }
+}
+
+/// Fisher–Yates shuffle, from the last element down (the order the matcher's triples and the
+/// test kit's scenarios were generated with; `rand`'s `SliceRandom::shuffle` draws another
+/// permutation from the same generator, which would change the documented frames).
+pub(crate) fn shuffle<R: rand::Rng + ?Sized, T>(rng: &mut R, items: &mut [T]) {
+    use rand::RngExt;
+    for i in (1..items.len()).rev() {
+        let j = rng.random_range(0..=i);
+        items.swap(i, j);
     }
 }

@@ -8,7 +8,7 @@ use super::cells::cells;
 use super::conclusion::conclude;
 use super::pairs::{CellData, PairContext, cell_data};
 use super::scoring::ConclusionCache;
-use super::scratch::{Cells, TripleKey, for_each_bit};
+use super::scratch::{Cells, TripleKey, for_each_bit, shuffle};
 use super::{
     CORE_GROWTH, DUPLICATE_ANGLE_RAD, Detection, HYPOTHESIS_THRESHOLD_FACTOR, LandmarkDb,
     MAX_CONFIRMATION_TRIPLES, MIN_TRIPLE_ANGLE_RAD, MatchError, MatchOptions, MatchResult,
@@ -16,7 +16,6 @@ use super::{
 };
 use nalgebra::Vector3;
 use rand::SeedableRng;
-use rand::seq::SliceRandom;
 use std::collections::HashMap;
 use std::collections::hash_map::Entry;
 use vgps_geometry::geometry::{Pose, PoseSolutions, angle_between, try_unit};
@@ -480,7 +479,10 @@ fn round_triples(
             }
         }
     }
-    triples.shuffle(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed));
+    shuffle(
+        &mut rand_chacha::ChaCha8Rng::seed_from_u64(seed),
+        &mut triples,
+    );
     triples.truncate(budget);
     triples.sort_by_key(|t| t.iter().map(|&d| allowed_counts[d]).max());
     triples

@@ -13,9 +13,9 @@
 //! assert_eq!(frame.detections.len(), frame.truth.len());
 //! ```
 
+use crate::matcher::scratch::shuffle;
 use crate::matcher::{DbLandmark, LandmarkDb, MatchError, SearchArea};
 use nalgebra::{Rotation3, Translation3, Vector3};
-use rand::seq::SliceRandom;
 use rand::{Rng, RngExt};
 use vgps_geometry::geometry::{Pose, bearing_in_rig};
 use vgps_geometry::synthetic::{normal, perturb_bearing, random_unit_vector};
@@ -386,7 +386,7 @@ impl CityWorld {
         config: &FrameConfig,
     ) -> SyntheticFrame {
         let mut visible = self.visible(pose, config.visibility_m);
-        visible.shuffle(rng);
+        shuffle(rng, &mut visible);
         visible.truncate(config.true_detections);
         let mut items: Vec<(Vector3<f64>, Option<u32>, Option<usize>)> = Vec::new();
         for &k in &visible {
@@ -405,7 +405,7 @@ impl CityWorld {
             });
             items.push((random_unit_vector(rng), class, None));
         }
-        items.shuffle(rng);
+        shuffle(rng, &mut items);
         SyntheticFrame {
             detections: items.iter().map(|i| i.0).collect(),
             classes: items.iter().map(|i| i.1).collect(),
