@@ -68,7 +68,7 @@ pub enum ImportSource {
         #[command(flatten)]
         common: CommonImportArgs,
     },
-    /// An NCLT session directory (lb3/Cam0…Cam5, gps.csv, gps_rtk.csv, groundtruth_<date>.csv).
+    /// An NCLT session directory (`lb3/Cam0…Cam5`, `gps.csv`, `gps_rtk.csv`, `groundtruth_<date>.csv`).
     Nclt {
         /// The session directory.
         session: PathBuf,

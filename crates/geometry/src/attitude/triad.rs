@@ -34,7 +34,7 @@ pub const MIN_TRIAD_SINE: f64 = 1e-10;
 ///
 /// # Role in vgps
 /// The proposal's rotational inference, kept as the **reference and cross-check**: production
-/// attitude comes with the position from [`crate::solvers::refine_pose`] (jointly optimal over
+/// attitude comes with the position from [`crate::solvers::refine_pose()`] (jointly optimal over
 /// every landmark, with its covariance); [`wahba`](super::wahba) is the optimal attitude from
 /// many directions when the position is known.
 ///

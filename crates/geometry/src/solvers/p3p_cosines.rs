@@ -86,8 +86,8 @@ pub type RangeSolutions = ArrayVec<[f64; 3], 4>;
 /// # Role in vgps
 /// The proposal's own method, kept as the **reference and cross-check**: production does not
 /// call it. Hypotheses in the matcher and the robust estimator come from
-/// [`crate::solvers::p3p`] (0.3 µs against 1.2 µs per solve, docs/dev/journal.md); the final
-/// fix is [`crate::solvers::refine_pose`] over every landmark. `tests/p3p_cross_check.rs`
+/// [`crate::solvers::p3p()`] (0.3 µs against 1.2 µs per solve, docs/dev/journal.md); the final
+/// fix is [`crate::solvers::refine_pose()`] over every landmark. `tests/p3p_cross_check.rs`
 /// checks that both solvers find the same poses.
 ///
 /// # Example

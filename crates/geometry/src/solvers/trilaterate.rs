@@ -71,9 +71,9 @@ pub enum TrilaterationError {
 /// centres, and spheres that do not meet.
 ///
 /// # Role in vgps
-/// A step of the proposal's method ([`crate::solvers::p3p_cosines`] gives the ranges,
+/// A step of the proposal's method ([`crate::solvers::p3p_cosines()`] gives the ranges,
 /// trilateration the position), kept as the **reference**: production positions come from
-/// [`crate::solvers::p3p`] and [`crate::solvers::refine_pose`].
+/// [`crate::solvers::p3p()`] and [`crate::solvers::refine_pose()`].
 ///
 /// # Example
 /// ```

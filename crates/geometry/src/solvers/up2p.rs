@@ -62,7 +62,7 @@ pub fn level_from_rig(up_in_rig: &Vector3<f64>) -> Option<Rotation3<f64>> {
 ///
 /// # Role in vgps
 /// A **cross-check** and a building block for a known vertical: the matcher does not call it
-/// (with a known vertical it keeps [`crate::solvers::p3p`] and gates hypotheses by their tilt);
+/// (with a known vertical it keeps [`crate::solvers::p3p()`] and gates hypotheses by their tilt);
 /// `examples/up2p_conditioning.rs` and the `solvers` benchmark measure it.
 ///
 /// # Example
