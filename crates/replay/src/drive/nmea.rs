@@ -413,15 +413,10 @@ fn parse_rmc(f: &[&str]) -> Result<(i64, f64), String> {
     Ok((days, tod))
 }
 
-/// GGA → (time of day, fix or none).
-fn parse_gga(f: &[&str]) -> Result<(f64, Option<GnssFix>), String> {
-    let tod = time_of_day(field(f, 1))?;
-    let quality: u8 = field(f, 6)
-        .parse()
-        .map_err(|_| format!("quality `{}` is not 0-8", field(f, 6)))?;
-    if quality == 0 {
-        return Ok((tod, None));
-    }
+/// The fix fields GGA and GNS share (latitude 2–3, longitude 4–5, satellites 7, HDOP 8,
+/// altitude above mean sea level 9) and the geoid separation at `separation_field` (GGA 11,
+/// GNS 10).
+fn fix_fields(f: &[&str], quality: u8, separation_field: usize) -> Result<GnssFix, String> {
     let lat = angle(field(f, 2), field(f, 3), 2, 90.0)?;
     let lon = angle(field(f, 4), field(f, 5), 3, 180.0)?;
     let num_sats = match field(f, 7) {
@@ -433,17 +428,26 @@ fn parse_gga(f: &[&str]) -> Result<(f64, Option<GnssFix>), String> {
     };
     let hdop = number(f, 8, "hdop")?;
     let msl = number(f, 9, "altitude")?.ok_or("altitude is missing")?;
-    let separation = number(f, 11, "geoid separation")?.unwrap_or(0.0);
+    let separation = number(f, separation_field, "geoid separation")?.unwrap_or(0.0);
     let position = Geodetic::try_new(lat, lon, msl + separation).map_err(|e| e.to_string())?;
-    Ok((
-        tod,
-        Some(GnssFix {
-            position,
-            quality,
-            hdop,
-            num_sats,
-        }),
-    ))
+    Ok(GnssFix {
+        position,
+        quality,
+        hdop,
+        num_sats,
+    })
+}
+
+/// GGA → (time of day, fix or none).
+fn parse_gga(f: &[&str]) -> Result<(f64, Option<GnssFix>), String> {
+    let tod = time_of_day(field(f, 1))?;
+    let quality: u8 = field(f, 6)
+        .parse()
+        .map_err(|_| format!("quality `{}` is not 0-8", field(f, 6)))?;
+    if quality == 0 {
+        return Ok((tod, None));
+    }
+    Ok((tod, Some(fix_fields(f, quality, 11)?)))
 }
 
 /// GNS → (time of day, fix or none): `GNS,time,lat,N,lon,E,mode,sats,hdop,alt,sep,…`.
@@ -483,28 +487,7 @@ fn parse_gns(f: &[&str]) -> Result<(f64, Option<GnssFix>), String> {
     let Some(quality) = quality else {
         return Ok((tod, None));
     };
-    let lat = angle(field(f, 2), field(f, 3), 2, 90.0)?;
-    let lon = angle(field(f, 4), field(f, 5), 3, 180.0)?;
-    let num_sats = match field(f, 7) {
-        "" => None,
-        s => Some(
-            s.parse::<u32>()
-                .map_err(|_| format!("satellites `{s}` is not a count"))?,
-        ),
-    };
-    let hdop = number(f, 8, "hdop")?;
-    let msl = number(f, 9, "altitude")?.ok_or("altitude is missing")?;
-    let separation = number(f, 10, "geoid separation")?.unwrap_or(0.0);
-    let position = Geodetic::try_new(lat, lon, msl + separation).map_err(|e| e.to_string())?;
-    Ok((
-        tod,
-        Some(GnssFix {
-            position,
-            quality,
-            hdop,
-            num_sats,
-        }),
-    ))
+    Ok((tod, Some(fix_fields(f, quality, 10)?)))
 }
 
 fn parse_hdt(f: &[&str]) -> Result<f64, String> {
