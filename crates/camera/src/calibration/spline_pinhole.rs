@@ -194,25 +194,17 @@ impl SplinePinhole {
         if !(rectified.x.is_finite() && rectified.y.is_finite()) {
             return None;
         }
-        let mut p = self.unrectify_by_warp(rectified);
-        for _ in 0..MAX_SPLINE_INVERSE_ITERATIONS {
-            let (value, jac) = self.rectify(&p);
-            let inv = jac.try_inverse()?;
-            let mut step = inv * (value - rectified);
-            let n = step.norm();
-            if !n.is_finite() {
-                return None;
-            }
-            if n > SPLINE_MAX_NEWTON_STEP {
-                step *= SPLINE_MAX_NEWTON_STEP / n;
-            }
-            p -= step;
-            if n <= SPLINE_INVERSE_TOLERANCE {
-                let residual = (self.rectify(&p).0 - rectified).norm();
-                return (residual <= SPLINE_INVERSE_RESIDUAL).then_some(p);
-            }
-        }
-        None
+        super::tabulated_pinhole::newton_inverse(
+            |p| self.rectify(p),
+            self.unrectify_by_warp(rectified),
+            rectified,
+            &super::tabulated_pinhole::NewtonLimits {
+                max_iterations: MAX_SPLINE_INVERSE_ITERATIONS,
+                max_step: SPLINE_MAX_NEWTON_STEP,
+                tolerance: SPLINE_INVERSE_TOLERANCE,
+                residual: SPLINE_INVERSE_RESIDUAL,
+            },
+        )
     }
 
     /// The rectified pinhole's pixel of a direction (`z > 0`), not bounded to any image.

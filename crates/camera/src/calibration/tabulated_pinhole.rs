@@ -292,25 +292,17 @@ impl TabulatedPinhole {
         ) else {
             return Some(*q);
         };
-        let mut p = u2d.interpolate(q).0;
-        for _ in 0..MAX_TABLE_INVERSE_ITERATIONS {
-            let (value, jac) = d2u.interpolate(&p);
-            let inv = jac.try_inverse()?;
-            let mut step = inv * (value - q);
-            let n = step.norm();
-            if !n.is_finite() {
-                return None;
-            }
-            if n > TABLE_MAX_NEWTON_STEP {
-                step *= TABLE_MAX_NEWTON_STEP / n;
-            }
-            p -= step;
-            if n <= TABLE_INVERSE_TOLERANCE {
-                let residual = (d2u.interpolate(&p).0 - q).norm();
-                return (residual <= TABLE_INVERSE_RESIDUAL).then_some(p);
-            }
-        }
-        None
+        newton_inverse(
+            |p| d2u.interpolate(p),
+            u2d.interpolate(q).0,
+            q,
+            &NewtonLimits {
+                max_iterations: MAX_TABLE_INVERSE_ITERATIONS,
+                max_step: TABLE_MAX_NEWTON_STEP,
+                tolerance: TABLE_INVERSE_TOLERANCE,
+                residual: TABLE_INVERSE_RESIDUAL,
+            },
+        )
     }
 
     #[inline]
@@ -407,4 +399,47 @@ impl CameraModel for TabulatedPinhole {
         let jp = super::pixel_jacobian_from_bearing_jacobian(&jb, &unit, norm)?;
         Some((pixel, jp))
     }
+}
+
+/// Limits of [`newton_inverse`] (pixels).
+pub(crate) struct NewtonLimits {
+    /// Most iterations.
+    pub max_iterations: usize,
+    /// Longest step (a damped Newton step).
+    pub max_step: f64,
+    /// A step this short ends the iteration.
+    pub tolerance: f64,
+    /// Largest accepted |map(p) − target| at the end.
+    pub residual: f64,
+}
+
+/// The point `p` with `map(p) = target`, by damped Newton from `start`, where `map` returns a
+/// value and its Jacobian: the inverse of the distortion tables and of the Ladybug warps.
+/// `None` when a Jacobian is singular, a step is not finite, or it does not converge within
+/// `limits`.
+pub(crate) fn newton_inverse(
+    map: impl Fn(&Vector2<f64>) -> (Vector2<f64>, Matrix2<f64>),
+    start: Vector2<f64>,
+    target: &Vector2<f64>,
+    limits: &NewtonLimits,
+) -> Option<Vector2<f64>> {
+    let mut p = start;
+    for _ in 0..limits.max_iterations {
+        let (value, jac) = map(&p);
+        let inv = jac.try_inverse()?;
+        let mut step = inv * (value - target);
+        let n = step.norm();
+        if !n.is_finite() {
+            return None;
+        }
+        if n > limits.max_step {
+            step *= limits.max_step / n;
+        }
+        p -= step;
+        if n <= limits.tolerance {
+            let residual = (map(&p).0 - target).norm();
+            return (residual <= limits.residual).then_some(p);
+        }
+    }
+    None
 }
