@@ -209,6 +209,21 @@ impl State<'_> {
             Kind::Imu => match ros_decode::imu(m.data) {
                 Ok(imu) => {
                     let c = imu.orientation_covariance;
+                    // A sample the replay could not use (NaN, zero quaternion, …) is refused
+                    // here, naming the record and the field.
+                    let [x, y, z, w] = imu.orientation;
+                    if let Err(e) = vgps_replay::drive::imu::ImuSample::try_new(
+                        0.0,
+                        [x, y, z, w],
+                        [c[0], c[4], c[8]],
+                        imu.angular_velocity,
+                        imu.linear_acceleration,
+                    ) {
+                        return self.warn_record(
+                            m,
+                            format!("Imu: field `{}`: {}; skipped", e.field, e.reason),
+                        );
+                    }
                     self.content.imu.push(ImuRow {
                         time_s: seconds_of_ns(stamp_or_log_time(&imu.header, m)),
                         orientation: imu.orientation,
