@@ -44,6 +44,10 @@ pub struct McapImportOptions {
     pub topics: Option<BTreeMap<String, usize>>,
     /// Largest spread of the stamps of one frame, seconds.
     pub stamp_tolerance_s: f64,
+    /// Write each image durably ([`vgps_io::write_atomic`]: a temporary file, fsync, rename,
+    /// fsync of the directory). `false` for a drive that only lives as long as one replay
+    /// (`vgps replay run.mcap`): two fsyncs per image are most of an import's time.
+    pub durable_images: bool,
 }
 
 /// Reads a topic mapping file: CSV `topic,camera` with a header; blank lines and lines
@@ -280,7 +284,12 @@ impl State<'_> {
             self.error = Some(e);
             return;
         }
-        if let Err(source) = vgps_io::write_atomic(&path, &bytes) {
+        let written = if self.options.durable_images {
+            vgps_io::write_atomic(&path, &bytes)
+        } else {
+            std::fs::write(&path, &bytes)
+        };
+        if let Err(source) = written {
             self.error = Some(ImportError::Write { path, source });
             return;
         }

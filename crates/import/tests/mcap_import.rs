@@ -16,6 +16,7 @@ fn options() -> McapImportOptions {
         landmarks: Some(data().join("source/landmarks.csv")),
         topics: None,
         stamp_tolerance_s: 0.01,
+        durable_images: true,
     }
 }
 

@@ -273,11 +273,14 @@ mod tests {
     fn orientation_gives_the_vertical_and_the_heading() {
         // Heading 30° from east (ENU yaw), pitched 2° nose up, rolled 1°.
         let q = UnitQuaternion::from_euler_angles(1.0 * DEG, -2.0 * DEG, 30.0 * DEG);
-        let s = sample(q, [1e-6, 4e-6, 1e-4]);
+        let s = sample(q, [1e-6, 1e-4, 1e-4]);
         let prior = s.attitude_prior(0.0).unwrap();
         let true_up = q.inverse_transform_vector(&Vector3::z());
         assert!((prior.up_in_rig - true_up).norm() < 1e-12);
-        assert!((prior.up_tolerance_rad - 3.0 * 2e-3).abs() < 1e-12);
+        assert!((prior.up_tolerance_rad - 0.03).abs() < 1e-12);
+        // A tight variance: the smallest tolerance.
+        let tight = sample(q, [1e-8, 1e-8, 1e-4]).attitude_prior(0.0).unwrap();
+        assert_eq!(tight.up_tolerance_rad, MIN_UP_TOLERANCE_RAD);
         let (h, tol) = prior.heading.unwrap();
         assert!((h - 30.0 * DEG).abs() < 1e-3, "{h}");
         assert!((tol - 0.03).abs() < 1e-12);
