@@ -306,14 +306,11 @@ impl FrameStep<'_, '_> {
                 } else {
                     None
                 };
-                let fix = self
-                    .localizer
-                    .process(&Frame::from_detections(f.time_s, &dets, self.map, prior)
-                        .with_attitude(
-                        self.imu
-                            .then(|| self.drive.attitude_at(f.time_s))
-                            .flatten(),
-                    ));
+                let fix = self.localizer.process(
+                    &Frame::from_detections(f.time_s, &dets, self.map, prior).with_attitude(
+                        self.imu.then(|| self.drive.attitude_at(f.time_s)).flatten(),
+                    ),
+                );
                 (
                     fix.status.as_str().to_string(),
                     visual_of(&fix),

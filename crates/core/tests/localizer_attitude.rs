@@ -18,19 +18,22 @@ fn frames_with_an_imu_are_fixed_where_they_otherwise_wait_for_the_cold_start() {
     scenario.length_m = 300.0;
     let drive = simulate(&scenario).unwrap();
     let landmarks = drive.surveyed_landmarks().unwrap();
-    let map = Arc::new(LandmarkMap::from_landmarks(&landmarks, Some(drive.scenario.origin)).unwrap());
+    let map =
+        Arc::new(LandmarkMap::from_landmarks(&landmarks, Some(drive.scenario.origin)).unwrap());
     let rig = Arc::new(drive.scenario.rig.clone());
     // Frames 5 s apart: beyond the motion model's reach, and no satellite GPS.
     let frames: Vec<_> = drive.frames.iter().step_by(25).take(6).collect();
     let run = |imu: bool| {
-        let mut localizer =
-            Localizer::new(Arc::clone(&rig), Arc::clone(&map), LocalizerOptions::default())
-                .unwrap();
+        let mut localizer = Localizer::new(
+            Arc::clone(&rig),
+            Arc::clone(&map),
+            LocalizerOptions::default(),
+        )
+        .unwrap();
         frames
             .iter()
             .map(|f| {
-                let detections: Vec<_> =
-                    f.detections.iter().map(|d| d.detection.clone()).collect();
+                let detections: Vec<_> = f.detections.iter().map(|d| d.detection.clone()).collect();
                 let r = f.world_from_rig.rotation;
                 let x = r * Vector3::x();
                 let attitude = imu.then(|| AttitudePrior {
@@ -82,10 +85,10 @@ fn a_wrong_heading_prior_finds_no_wrong_fix() {
     scenario.length_m = 300.0;
     let drive = simulate(&scenario).unwrap();
     let landmarks = drive.surveyed_landmarks().unwrap();
-    let map = Arc::new(LandmarkMap::from_landmarks(&landmarks, Some(drive.scenario.origin)).unwrap());
+    let map =
+        Arc::new(LandmarkMap::from_landmarks(&landmarks, Some(drive.scenario.origin)).unwrap());
     let rig = Arc::new(drive.scenario.rig.clone());
-    let mut localizer =
-        Localizer::new(rig, Arc::clone(&map), LocalizerOptions::default()).unwrap();
+    let mut localizer = Localizer::new(rig, Arc::clone(&map), LocalizerOptions::default()).unwrap();
     let f = &drive.frames[0];
     let detections: Vec<_> = f.detections.iter().map(|d| d.detection.clone()).collect();
     let r = f.world_from_rig.rotation;
@@ -99,7 +102,8 @@ fn a_wrong_heading_prior_finds_no_wrong_fix() {
         &Frame::from_detections(f.time_s, &detections, &map, None).with_attitude(Some(attitude)),
     );
     if let Some(e) = &fix.estimate {
-        let error = (e.world_from_rig.translation.vector - f.world_from_rig.translation.vector).norm();
+        let error =
+            (e.world_from_rig.translation.vector - f.world_from_rig.translation.vector).norm();
         assert!(error < 0.5, "{fix:?}");
     }
 }

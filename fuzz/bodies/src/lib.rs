@@ -495,7 +495,11 @@ pub fn imu_csv(data: &[u8]) {
     for s in &samples {
         assert_finite(s.time_s, "time_s");
         if let Some(p) = s.attitude_prior(0.05) {
-            assert!((p.up_in_rig.norm() - 1.0).abs() < 1e-9, "up {:?}", p.up_in_rig);
+            assert!(
+                (p.up_in_rig.norm() - 1.0).abs() < 1e-9,
+                "up {:?}",
+                p.up_in_rig
+            );
             assert!(p.up_tolerance_rad.is_finite() && p.up_tolerance_rad >= 0.0);
             if let Some((h, tol)) = p.heading {
                 assert!(h.is_finite() && tol.is_finite() && tol >= 0.0);

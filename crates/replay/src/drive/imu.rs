@@ -117,10 +117,7 @@ impl ImuSample {
         } else {
             let [x, y, z, w] = orientation;
             if !orientation.iter().all(|v| v.is_finite()) {
-                return Err(bad(
-                    "orientation",
-                    format!("{orientation:?} is not finite"),
-                ));
+                return Err(bad("orientation", format!("{orientation:?} is not finite")));
             }
             let q = Quaternion::new(w, x, y, z);
             let norm = q.norm();
@@ -165,8 +162,7 @@ impl ImuSample {
                 let tol = (3.0 * var_roll.max(var_pitch).sqrt()).max(MIN_UP_TOLERANCE_RAD);
                 let x = q.transform_vector(&Vector3::x());
                 let heading_tol = (3.0 * var_yaw.sqrt()).max(MIN_HEADING_TOLERANCE_RAD);
-                let heading = (heading_tol <= MAX_HEADING_TOLERANCE_RAD
-                    && x.x.hypot(x.y) > 1e-6)
+                let heading = (heading_tol <= MAX_HEADING_TOLERANCE_RAD && x.x.hypot(x.y) > 1e-6)
                     .then(|| (x.y.atan2(x.x), heading_tol + turned));
                 (up, tol, heading)
             }
@@ -197,7 +193,11 @@ pub fn attitude_at(samples: &[ImuSample], time_s: f64) -> Option<AttitudePrior> 
         .into_iter()
         .flatten()
         .filter_map(|i| samples.get(i))
-        .min_by(|a, b| (a.time_s - time_s).abs().total_cmp(&(b.time_s - time_s).abs()))?;
+        .min_by(|a, b| {
+            (a.time_s - time_s)
+                .abs()
+                .total_cmp(&(b.time_s - time_s).abs())
+        })?;
     let dt = time_s - nearest.time_s;
     (dt.abs() <= MAX_IMU_TIME_GAP_S)
         .then(|| nearest.attitude_prior(dt))
@@ -293,14 +293,14 @@ mod tests {
 
     #[test]
     fn accelerometer_alone_gives_the_vertical() {
-        let s = ImuSample::try_new(0.0, [0.0; 4], [-1.0, 0.0, 0.0], [0.0; 3], [0.0, 0.5, 9.8])
-            .unwrap();
+        let s =
+            ImuSample::try_new(0.0, [0.0; 4], [-1.0, 0.0, 0.0], [0.0; 3], [0.0, 0.5, 9.8]).unwrap();
         let prior = s.attitude_prior(0.0).unwrap();
         assert!((prior.up_in_rig - Vector3::new(0.0, 0.5, 9.8).normalize()).norm() < 1e-12);
         assert!(prior.heading.is_none());
         // Braking hard: the norm is off, no vertical.
-        let s = ImuSample::try_new(0.0, [0.0; 4], [-1.0, 0.0, 0.0], [0.0; 3], [4.0, 0.0, 9.8])
-            .unwrap();
+        let s =
+            ImuSample::try_new(0.0, [0.0; 4], [-1.0, 0.0, 0.0], [0.0; 3], [4.0, 0.0, 9.8]).unwrap();
         assert!(s.attitude_prior(0.0).is_none());
     }
 

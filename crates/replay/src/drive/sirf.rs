@@ -69,19 +69,19 @@ pub const TEN_BIT_WEEK_ERA_START: u32 = 1024;
 
 /// GPS−UTC leap seconds and the UTC date (Unix seconds) from which each holds.
 const LEAP_SECONDS: [(i64, i64); 18] = [
-    (362_793_600, 1),   // 1981-07-01
-    (394_329_600, 2),   // 1982-07-01
-    (425_865_600, 3),   // 1983-07-01
-    (489_024_000, 4),   // 1985-07-01
-    (567_993_600, 5),   // 1988-01-01
-    (631_152_000, 6),   // 1990-01-01
-    (662_688_000, 7),   // 1991-01-01
-    (709_948_800, 8),   // 1992-07-01
-    (741_484_800, 9),   // 1993-07-01
-    (773_020_800, 10),  // 1994-07-01
-    (820_454_400, 11),  // 1996-01-01
-    (867_715_200, 12),  // 1997-07-01
-    (915_148_800, 13),  // 1999-01-01
+    (362_793_600, 1),    // 1981-07-01
+    (394_329_600, 2),    // 1982-07-01
+    (425_865_600, 3),    // 1983-07-01
+    (489_024_000, 4),    // 1985-07-01
+    (567_993_600, 5),    // 1988-01-01
+    (631_152_000, 6),    // 1990-01-01
+    (662_688_000, 7),    // 1991-01-01
+    (709_948_800, 8),    // 1992-07-01
+    (741_484_800, 9),    // 1993-07-01
+    (773_020_800, 10),   // 1994-07-01
+    (820_454_400, 11),   // 1996-01-01
+    (867_715_200, 12),   // 1997-07-01
+    (915_148_800, 13),   // 1999-01-01
     (1_136_073_600, 14), // 2006-01-01
     (1_230_768_000, 15), // 2009-01-01
     (1_341_100_800, 16), // 2012-07-01
@@ -288,8 +288,7 @@ fn geodetic(p: &[u8]) -> Result<GnssRecord, Skip> {
     if !(1980..=2200).contains(&year) || hour > 23 || minute > 59 || millis >= 61_000 {
         return Err(Skip::Untimed);
     }
-    let days =
-        days_from_date(year, u32::from(month), u32::from(day)).ok_or(Skip::Untimed)?;
+    let days = days_from_date(year, u32::from(month), u32::from(day)).ok_or(Skip::Untimed)?;
     let time_s = days as f64 * 86_400.0
         + f64::from(u32::from(hour) * 3600 + u32::from(minute) * 60)
         + f64::from(millis) * 1e-3;
@@ -469,7 +468,11 @@ mod tests {
         for (valid, nav_type, quality) in cases {
             let (r, s) = read_sirf(&frame(&mid41(valid, nav_type, 2016)));
             assert_eq!((r.len(), s.geodetic, s.from_geodetic), (1, 1, true));
-            assert_eq!(r[0].fix.map(|f| f.quality), quality, "{valid} {nav_type:#x}");
+            assert_eq!(
+                r[0].fix.map(|f| f.quality),
+                quality,
+                "{valid} {nav_type:#x}"
+            );
         }
         let (r, _) = read_sirf(&frame(&mid41(0, 4, 2016)));
         let expected = days_from_date(2016, 12, 31).unwrap() as f64 * 86_400.0 + 86_400.5;
