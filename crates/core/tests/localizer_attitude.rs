@@ -13,6 +13,7 @@ use vgps_sim::simulate::{Preset, Scenario, simulate};
 const DEG: f64 = std::f64::consts::PI / 180.0;
 
 #[test]
+#[ignore = "partial (#27): 12 whole-map searches; did not finish within 400 s at load 20, outcome not yet seen"]
 fn frames_with_an_imu_are_fixed_where_they_otherwise_wait_for_the_cold_start() {
     let mut scenario = Scenario::preset(Preset::Short, 7);
     scenario.length_m = 300.0;
@@ -78,6 +79,7 @@ fn frames_with_an_imu_are_fixed_where_they_otherwise_wait_for_the_cold_start() {
 }
 
 #[test]
+#[ignore = "slow for CI (≈3 min at load 20; passed on 2026-11-26): run with --ignored"]
 fn a_wrong_heading_prior_finds_no_wrong_fix() {
     // The heading gate drops the true poses: the frame is not fixed (or, if other poses
     // pass, not wrongly: every fix is checked against the truth).
