@@ -157,6 +157,7 @@ fn replay_settings(
         pixel_sigma_px: vgps_core::localizer::DEFAULT_PIXEL_SIGMA_PX,
         surrogates: true,
         gnss_prior: true,
+        imu: true,
         from_images,
         image_size: None,
         detector: vgps_replay::frame_images::DetectorKind::Point,

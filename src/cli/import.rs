@@ -141,6 +141,7 @@ fn mcap_options(
     landmarks: Option<PathBuf>,
     topics: Option<&Path>,
     stamp_tolerance_s: f64,
+    durable_images: bool,
 ) -> Result<McapImportOptions, CliError> {
     Ok(McapImportOptions {
         rig,
@@ -150,6 +151,7 @@ fn mcap_options(
             .transpose()
             .map_err(input_error)?,
         stamp_tolerance_s,
+        durable_images,
     })
 }
 
@@ -174,6 +176,8 @@ pub fn mcap_to_temp_drive(
         args.landmarks.clone(),
         args.topics.as_deref(),
         args.stamp_tolerance_s.unwrap_or(DEFAULT_STAMP_TOLERANCE_S),
+        // A temporary drive, removed after the replay: no fsync per image.
+        false,
     )?;
     let dir = tempfile::Builder::new()
         .prefix("vgps-mcap-")
@@ -201,6 +205,7 @@ pub fn run(args: &ImportArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resul
                 common.landmarks.clone(),
                 topics.as_deref(),
                 common.stamp_tolerance_s,
+                true,
             )?;
             let imported = import_mcap(file, &common.out, &options).map_err(input_error)?;
             let m = &imported.mcap;

@@ -70,6 +70,9 @@ pub struct ReplayArgs {
     /// Do not use satellite GPS as a prior (only to compare with).
     #[arg(long)]
     pub no_gnss_prior: bool,
+    /// Do not use the drive's IMU (`imu.csv`) as the matcher's vertical and heading prior.
+    #[arg(long)]
+    pub no_imu: bool,
     /// Detect lamps in the images even when the drive has `detections.csv`.
     #[arg(long)]
     pub from_images: bool,
@@ -194,6 +197,7 @@ pub fn run(
                 map: &map,
                 localizer: &mut localizer,
                 gnss_prior: settings.gnss_prior,
+                imu: settings.imu,
             };
             let record = step.record(f, d, err);
             live.send(&record, err);
@@ -259,6 +263,7 @@ struct FrameStep<'d, 'l> {
     map: &'d LandmarkMap,
     localizer: &'l mut Localizer,
     gnss_prior: bool,
+    imu: bool,
 }
 
 impl FrameStep<'_, '_> {
@@ -301,9 +306,11 @@ impl FrameStep<'_, '_> {
                 } else {
                     None
                 };
-                let fix = self
-                    .localizer
-                    .process(&Frame::from_detections(f.time_s, &dets, self.map, prior));
+                let fix = self.localizer.process(
+                    &Frame::from_detections(f.time_s, &dets, self.map, prior).with_attitude(
+                        self.imu.then(|| self.drive.attitude_at(f.time_s)).flatten(),
+                    ),
+                );
                 (
                     fix.status.as_str().to_string(),
                     visual_of(&fix),

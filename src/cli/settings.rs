@@ -102,6 +102,8 @@ pub struct ReplaySettings {
     pub surrogates: bool,
     /// Use satellite GPS as a prior.
     pub gnss_prior: bool,
+    /// Use the drive's IMU as an attitude prior.
+    pub imu: bool,
     /// Detect lamps in the images even when the drive has a detections file.
     pub from_images: bool,
     /// The image size of cameras whose calibration has none (`--image-size WxH`).
@@ -298,6 +300,7 @@ impl TryFrom<ReplayArgs> for ReplaySettings {
             pixel_sigma_px: a.pixel_sigma_px,
             surrogates: !a.no_surrogates,
             gnss_prior: !a.no_gnss_prior,
+            imu: !a.no_imu,
             from_images: a.from_images,
             image_size: a.image_size,
             detector: a.detector.into(),

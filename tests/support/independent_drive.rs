@@ -517,6 +517,7 @@ pub fn replay_with(
             time_s: f.time_s,
             observations,
             gnss: f.gnss.map(|position| GnssPosition { position }),
+            attitude: None,
         };
         let fix = localizer.process(&frame);
         each(k, &fix);

@@ -44,6 +44,10 @@ pub struct McapImportOptions {
     pub topics: Option<BTreeMap<String, usize>>,
     /// Largest spread of the stamps of one frame, seconds.
     pub stamp_tolerance_s: f64,
+    /// Write each image durably ([`vgps_io::write_atomic`]: a temporary file, fsync, rename,
+    /// fsync of the directory). `false` for a drive that only lives as long as one replay
+    /// (`vgps replay run.mcap`): two fsyncs per image are most of an import's time.
+    pub durable_images: bool,
 }
 
 /// Reads a topic mapping file: CSV `topic,camera` with a header; blank lines and lines
@@ -209,6 +213,21 @@ impl State<'_> {
             Kind::Imu => match ros_decode::imu(m.data) {
                 Ok(imu) => {
                     let c = imu.orientation_covariance;
+                    // A sample the replay could not use (NaN, zero quaternion, …) is refused
+                    // here, naming the record and the field.
+                    let [x, y, z, w] = imu.orientation;
+                    if let Err(e) = vgps_replay::drive::imu::ImuSample::try_new(
+                        0.0,
+                        [x, y, z, w],
+                        [c[0], c[4], c[8]],
+                        imu.angular_velocity,
+                        imu.linear_acceleration,
+                    ) {
+                        return self.warn_record(
+                            m,
+                            format!("Imu: field `{}`: {}; skipped", e.field, e.reason),
+                        );
+                    }
                     self.content.imu.push(ImuRow {
                         time_s: seconds_of_ns(stamp_or_log_time(&imu.header, m)),
                         orientation: imu.orientation,
@@ -265,7 +284,12 @@ impl State<'_> {
             self.error = Some(e);
             return;
         }
-        if let Err(source) = vgps_io::write_atomic(&path, &bytes) {
+        let written = if self.options.durable_images {
+            vgps_io::write_atomic(&path, &bytes)
+        } else {
+            std::fs::write(&path, &bytes)
+        };
+        if let Err(source) = written {
             self.error = Some(ImportError::Write { path, source });
             return;
         }

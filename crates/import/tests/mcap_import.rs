@@ -16,6 +16,7 @@ fn options() -> McapImportOptions {
         landmarks: Some(data().join("source/landmarks.csv")),
         topics: None,
         stamp_tolerance_s: 0.01,
+        durable_images: true,
     }
 }
 
@@ -106,7 +107,13 @@ fn bad_messages_are_reported_and_the_rest_imported() {
         "topic /ladybug/cam1/image/compressed: image: field `header.stamp.nanosec`: message ends at byte 8",
     );
     assert!(w.contains("bad.mcap: record "), "{w}");
+    // A bad IMU is an error of its record, naming the field; the good sample is kept.
+    has("topic /imu/data: Imu: field `orientation`: [NaN, 0.0, 0.0, 1.0] is not finite; skipped");
+    has("topic /imu/data: Imu: field `orientation`: is the zero quaternion");
     let drive = Drive::open(out.path(), Strictness::Strict).unwrap();
+    assert_eq!(drive.imu().len(), 1);
+    let prior = drive.attitude_at(drive.frames()[0].time_s).unwrap();
+    assert!((prior.up_in_rig - nalgebra::Vector3::z()).norm() < 1e-12);
     assert_eq!(drive.frames().len(), 1);
     assert_eq!(drive.gnss().len(), 2);
     assert_eq!(drive.gnss().iter().filter(|g| g.fix.is_some()).count(), 1);

@@ -478,6 +478,39 @@ pub fn ubx(data: &[u8]) {
     assert_gnss_records(&records);
 }
 
+/// Target `sirf`: [`vgps_replay::drive::sirf::read_sirf`] (SiRF binary frames mixed with
+/// NMEA).
+pub fn sirf(data: &[u8]) {
+    let (records, stats) = vgps_replay::drive::sirf::read_sirf(data);
+    assert!(stats.navigation + stats.geodetic + stats.geodetic_untimed <= stats.frames);
+    assert_gnss_records(&records);
+}
+
+/// Target `imu_csv`: [`vgps_replay::drive::imu::imu_from_text`] and the attitude prior of
+/// every sample read.
+pub fn imu_csv(data: &[u8]) {
+    let (samples, errors) =
+        vgps_replay::drive::imu::imu_from_text(std::path::Path::new("imu.csv"), &text(data));
+    assert!(errors.iter().all(|e| e.context.starts_with("imu.csv:")));
+    for s in &samples {
+        assert_finite(s.time_s, "time_s");
+        if let Some(p) = s.attitude_prior(0.05) {
+            assert!(
+                (p.up_in_rig.norm() - 1.0).abs() < 1e-9,
+                "up {:?}",
+                p.up_in_rig
+            );
+            assert!(p.up_tolerance_rad.is_finite() && p.up_tolerance_rad >= 0.0);
+            if let Some((h, tol)) = p.heading {
+                assert!(h.is_finite() && tol.is_finite() && tol >= 0.0);
+            }
+        }
+    }
+    if let Some(first) = samples.first() {
+        let _ = vgps_replay::drive::imu::attitude_at(&samples, first.time_s);
+    }
+}
+
 /// Target `gis_landmarks`: [`vgps_io::gis::landmarks_from_geojson`] and
 /// [`vgps_io::gis::landmarks_from_gis_csv`] (a ground height given).
 pub fn gis_landmarks(data: &[u8]) {
@@ -840,6 +873,8 @@ pub const TARGETS: &[Target] = &[
     ("gpx", gpx),
     ("nclt_gps", nclt_gps),
     ("ubx", ubx),
+    ("sirf", sirf),
+    ("imu_csv", imu_csv),
     ("gis_landmarks", gis_landmarks),
     ("truth_formats", truth_formats),
     ("ros_cdr", ros_cdr),

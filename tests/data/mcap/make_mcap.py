@@ -6,6 +6,11 @@ MCAP writers (PyPI `mcap` + `mcap-ros2-support`), so that CI needs neither ROS n
         --calibration tests/data/mcap/small_rig.json --out tests/data/mcap/source
     pip install mcap mcap-ros2-support
     python3 tests/data/mcap/make_mcap.py tests/data/mcap/source tests/data/mcap [--complete]
+        [--all-compressed]
+
+`--complete` keeps every image; `--all-compressed` writes camera 5 as a CompressedImage too
+(six compressed streams, as a Ladybug recording; the raw mono8 of camera 5 is decoded here in
+pure Python, far too slow for a long drive).
 
 run.mcap (zstd chunks, as rosbag2 records):
   /ladybug/cam<k>/image/compressed  sensor_msgs/msg/CompressedImage, the drive's PNGs as
@@ -17,7 +22,8 @@ run.mcap (zstd chunks, as rosbag2 records):
   /imu/data                         sensor_msgs/msg/Imu, orientation = truth quaternion
   /ladybug/cam0/camera_info         sensor_msgs/msg/CameraInfo (to be ignored)
 bad.mcap (uncompressed chunks): an image topic without a camera number, a NavSatFix channel
-  in `json` encoding, a NavSatFix with status -1, a truncated CompressedImage.
+  in `json` encoding, a NavSatFix with status -1, a truncated CompressedImage, three Imu
+  (good, a NaN orientation, a zero quaternion).
 """
 import csv
 import struct
@@ -122,7 +128,7 @@ def navsat(ns, fix):
             "position_covariance_type": 2}
 
 
-def main(src, out, drop=True):
+def main(src, out, drop=True, raw5=True):
     src, out = Path(src), Path(out)
     frames = list(csv.DictReader(open(src / "frames.csv")))
     truth = {r["frame"]: r for r in csv.DictReader(open(src / "truth.csv"))}
@@ -158,7 +164,7 @@ def main(src, out, drop=True):
                     continue  # a dropped image
                 data = (src / row[f"image_{k}"]).read_bytes()
                 stamp = t + k * 1_000_000
-                if k < 5:
+                if k < 5 or not raw5:
                     w.write_message(f"/ladybug/cam{k}/image/compressed", s_comp, {
                         "header": header(stamp, f"cam{k}"), "format": "png", "data": data},
                         log_time=stamp + 5_000_000)
@@ -185,6 +191,17 @@ def main(src, out, drop=True):
         w.write_message("/gps/fix", s_nav, navsat(t, None), log_time=t)
         w.write_message("/gps/fix", s_nav, navsat(t + 200_000_000, (37.5, -122.25, 10.0)),
                         log_time=t + 200_000_000)
+        s_imu = w.register_msgdef("sensor_msgs/msg/Imu", IMU)
+        for q in ({"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},            # good
+                  {"x": float("nan"), "y": 0.0, "z": 0.0, "w": 1.0},   # NaN
+                  {"x": 0.0, "y": 0.0, "z": 0.0, "w": 0.0}):           # zero quaternion
+            w.write_message("/imu/data", s_imu, {
+                "header": header(t, "imu"), "orientation": q,
+                "orientation_covariance": [1e-4, 0, 0, 0, 1e-4, 0, 0, 0, 1e-2],
+                "angular_velocity": {"x": 0.0, "y": 0.0, "z": 0.0},
+                "angular_velocity_covariance": [0.0] * 9,
+                "linear_acceleration": {"x": 0.0, "y": 0.0, "z": 9.81},
+                "linear_acceleration_covariance": [0.0] * 9}, log_time=t)
         raw = w._writer  # the underlying mcap writer, for channels rosbag2 would not write
         json_channel = raw.register_channel("/gps/json", "json", s_nav.id)
         raw.add_message(json_channel, t, b'{"latitude": 1}', t)
@@ -195,4 +212,5 @@ def main(src, out, drop=True):
 
 if __name__ == "__main__":
     # `--complete`: keep every image (to compare a replay of the recording with the folder's).
-    main(sys.argv[1], sys.argv[2], drop="--complete" not in sys.argv[3:])
+    main(sys.argv[1], sys.argv[2], drop="--complete" not in sys.argv[3:],
+         raw5="--all-compressed" not in sys.argv[3:])

@@ -25,7 +25,10 @@
 //!    the frame (radius [`LocalizerOptions::gnss_prior_radius_m`]: the satellite fix is used
 //!    as a prior and compared with the visual fix, never trusted as one), else a cold start
 //!    over the whole map when [`LocalizerOptions::cold_start`] is set. The matcher's pose
-//!    then seeds a tracking step, so every fix is computed the same way.
+//!    then seeds a tracking step, so every fix is computed the same way. A frame's
+//!    [`AttitudePrior`] (an IMU) replaces the level assumption by its vertical, and its
+//!    heading prunes the matcher's poses; with a heading, the whole-map search is tried on
+//!    every frame that has no other prior, not only when a cold start is due.
 //! 3. **Surrogates.** Observations not associated with a surveyed landmark go, with the
 //!    fix's pose and covariance, to a [`LandmarkMapper`] (Ku et al.'s online association and
 //!    projector-sum estimate). Mapped landmarks that meet the surrogate criteria
@@ -266,8 +269,21 @@ pub struct GnssPosition {
     pub position: Geodetic,
 }
 
-/// One frame: its time, its observations and, optionally, the satellite GPS position at
-/// that time.
+/// An attitude prior of a frame, as an IMU gives it: the vertical and, when known, the
+/// heading.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AttitudePrior {
+    /// The unit up direction (world +z) in the rig frame.
+    pub up_in_rig: Vector3<f64>,
+    /// How far the true up may be from it (radians).
+    pub up_tolerance_rad: f64,
+    /// The heading of the rig's x axis (ENU yaw: radians counter-clockwise from east) and
+    /// how far the true heading may be from it (radians), when known.
+    pub heading: Option<(f64, f64)>,
+}
+
+/// One frame: its time, its observations and, optionally, the satellite GPS position and
+/// an attitude prior at that time.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Frame {
     /// Time (seconds; Unix time in drives).
@@ -276,6 +292,8 @@ pub struct Frame {
     pub observations: Vec<Observation>,
     /// The satellite GPS position at the frame time, if any.
     pub gnss: Option<GnssPosition>,
+    /// The attitude prior at the frame time (an IMU), if any.
+    pub attitude: Option<AttitudePrior>,
 }
 
 impl Frame {
@@ -302,7 +320,13 @@ impl Frame {
                 })
                 .collect(),
             gnss,
+            attitude: None,
         }
+    }
+
+    /// The frame with an attitude prior.
+    pub fn with_attitude(self, attitude: Option<AttitudePrior>) -> Self {
+        Self { attitude, ..self }
     }
 }
 
@@ -581,7 +605,7 @@ impl Localizer {
             .map(|t| (t, candidates, FixSource::Tracking));
         }
         if tracked.is_none() {
-            match self.reacquire(frame.time_s, &observations, gnss_enu) {
+            match self.reacquire(frame.time_s, &observations, gnss_enu, frame.attitude) {
                 Ok(t) => tracked = Some(t),
                 Err((status, message)) => {
                     fix.status = status;
@@ -771,6 +795,7 @@ impl Localizer {
         time_s: f64,
         observations: &[ObsRay],
         gnss_enu: Option<Vector3<f64>>,
+        attitude: Option<AttitudePrior>,
     ) -> Result<(track::TrackResult, Vec<Candidate>, FixSource), (LocalizerStatus, String)> {
         let predicted = self.state.map(|s| {
             let (pose, guess) = self.predict(&s, time_s);
@@ -799,16 +824,21 @@ impl Localizer {
                 FixSource::Matcher,
             )
         } else if self.options.cold_start {
+            // With a heading prior the search is pruned to the poses of that heading: it is
+            // tried on every frame; a plain cold start at most every interval.
+            let aided = attitude.is_some_and(|a| a.heading.is_some());
             let due = self
                 .last_cold_start_s
                 .is_none_or(|t| (time_s - t).abs() >= self.options.cold_start_interval_s);
-            if !due {
+            if !(due || aided) {
                 return Err((
                     LocalizerStatus::NoPrior,
                     "no prior; the next cold start is not yet due".into(),
                 ));
             }
-            self.last_cold_start_s = Some(time_s);
+            if !aided {
+                self.last_cold_start_s = Some(time_s);
+            }
             let (lo, hi) = self.map.db().bounds().ok_or((
                 LocalizerStatus::NoFix,
                 "the landmark map is empty".to_string(),
@@ -842,11 +872,16 @@ impl Localizer {
             .is_none_or(|t| (time_s - t).abs() >= self.options.widened_acquisition_interval_s);
         let options = MatchOptions {
             sigma_rad: sigmas[sigmas.len() / 2],
-            up_in_rig: self
-                .options
-                .level_tolerance_rad
-                .map(|tol| (Vector3::z(), tol))
+            up_in_rig: attitude
+                .map(|a| (a.up_in_rig, a.up_tolerance_rad))
+                .or(self
+                    .options
+                    .level_tolerance_rad
+                    .map(|tol| (Vector3::z(), tol)))
                 .or(self.options.matcher.up_in_rig),
+            heading_in_world: attitude
+                .and_then(|a| a.heading)
+                .or(self.options.matcher.heading_in_world),
             max_rounds: if widen {
                 self.options.matcher.max_rounds
             } else {

@@ -374,6 +374,12 @@ pub struct MatchOptions {
     /// detection's elevation is a rotation invariant: single assignments are gated by
     /// elevation and P3P poses whose up disagrees are dropped.
     pub up_in_rig: Option<(Vector3<f64>, f64)>,
+    /// Known heading: the azimuth of the rig's x axis in the world (radians, counter-clockwise
+    /// from east, as ENU yaw) and how far the true heading may be from it, radians (e.g. an
+    /// IMU's magnetometer-referenced yaw). `None`: any heading. With it, P3P poses whose
+    /// heading disagrees by more than the tolerance are dropped before scoring, so fewer
+    /// wrong poses compete and the acceptance test counts fewer tries.
+    pub heading_in_world: Option<(f64, f64)>,
     /// A P3P pose is scored only when, under it, this many other core detections each lie
     /// within the hypothesis threshold of a candidate landmark of the cell (a cheap check
     /// that removes most wrong poses before scoring). 0 disables it.
@@ -410,6 +416,7 @@ impl Default for MatchOptions {
             max_hypotheses: DEFAULT_MAX_HYPOTHESES,
             seed: crate::fix::DEFAULT_SAMPLING_SEED,
             up_in_rig: None,
+            heading_in_world: None,
             min_extensions: DEFAULT_MIN_EXTENSIONS,
             max_rounds: DEFAULT_MAX_ROUNDS,
             min_link_probability: DEFAULT_MIN_LINK_PROBABILITY,

@@ -209,6 +209,7 @@ pub(super) fn run(
         return Ok(failed);
     }
     let up = known_up(options)?;
+    known_heading(options)?;
     let mut search = Search::new(db, detections, directions, angles, up, area, options);
 
     // Fewer than three landmarks within reach of the whole area: no cell to visit.
@@ -283,6 +284,26 @@ fn known_up(options: &MatchOptions) -> Result<Option<(Vector3<f64>, f64)>, Match
     }
 }
 
+/// The known heading and its tolerance, when the options give them.
+fn known_heading(options: &MatchOptions) -> Result<Option<(f64, f64)>, MatchError> {
+    match options.heading_in_world {
+        Some((h, tol)) if h.is_finite() && tol.is_finite() && tol >= 0.0 => Ok(Some((h, tol))),
+        Some(_) => Err(MatchError::InvalidOption("heading_in_world")),
+        None => Ok(None),
+    }
+}
+
+/// Whether the heading of `pose` (its x axis' azimuth in the world) is within `limit` of
+/// `heading` (radians). A pose whose x axis is vertical has no heading and is kept.
+fn heading_within(pose: &Pose, heading: f64, limit: f64) -> bool {
+    let x = pose.rotation * Vector3::x();
+    if x.x.hypot(x.y) < 1e-9 {
+        return true;
+    }
+    let d = (x.y.atan2(x.x) - heading).rem_euclid(std::f64::consts::TAU);
+    d.min(std::f64::consts::TAU - d) <= limit
+}
+
 /// How far a P3P pose from noisy bearings may be from the truth (the bearing noise bound
 /// at the visibility range, twice), metres.
 fn position_margin(options: &MatchOptions) -> f64 {
@@ -335,6 +356,9 @@ struct SearchPlan {
     /// With a known vertical: the rig's up and the largest tilt of a pose worth keeping, the
     /// tolerance plus `UP_CHECK_MARGIN_RAD` (P3P's upright check, and the azimuth test).
     up_limit: Option<(Vector3<f64>, f64)>,
+    /// With a known heading: the heading and the largest difference of a pose worth
+    /// keeping (the tolerance plus `UP_CHECK_MARGIN_RAD`).
+    heading_limit: Option<(f64, f64)>,
     /// The box a kept P3P pose lies in: the area with the cells' reach.
     reach_min: Vector3<f64>,
     reach_max: Vector3<f64>,
@@ -355,6 +379,10 @@ impl SearchPlan {
             radius,
             cell_reach: radius + position_margin,
             up_limit: search.up.map(|(u, tol)| (u, tol + UP_CHECK_MARGIN_RAD)),
+            heading_limit: search
+                .options
+                .heading_in_world
+                .map(|(h, tol)| (h, tol + UP_CHECK_MARGIN_RAD)),
             reach_min: area.min_in_world.add_scalar(-(radius + position_margin)),
             reach_max: area.max_in_world.add_scalar(radius + position_margin),
         }
@@ -730,8 +758,12 @@ impl Search<'_> {
         work.solves += work.to_solve.len();
         // Each distinct landmark triple's P3P poses (upright enough) inside the area
         // with the cells' reach.
-        let keep_pose =
-            |pose: &Pose| in_box(&pose.translation.vector, &frame.reach_min, &frame.reach_max);
+        let keep_pose = |pose: &Pose| {
+            in_box(&pose.translation.vector, &frame.reach_min, &frame.reach_max)
+                && frame
+                    .heading_limit
+                    .is_none_or(|(h, limit)| heading_within(pose, h, limit))
+        };
         solve_triples(
             triple.prepared.as_ref(),
             &work.to_solve,

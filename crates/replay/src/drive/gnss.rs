@@ -1,5 +1,5 @@
 //! Satellite GPS files of any supported format: NMEA 0183 ([`super::nmea`]), u-blox UBX
-//! mixed with NMEA ([`super::ubx`]), GPX 1.0/1.1 tracks ([`super::gpx`]) and NCLT `gps.csv`
+//! mixed with NMEA ([`super::ubx`]), SiRF binary ([`super::sirf`]), GPX 1.0/1.1 tracks ([`super::gpx`]) and NCLT `gps.csv`
 //! ([`super::nclt_gps`]), read into the drive's [`GnssRecord`]s.
 //!
 //! # Time
@@ -11,7 +11,8 @@
 //!
 //! # Format detection
 //! [`GnssFormat::detect_bytes`]: a file holding a UBX frame with a right checksum is UBX
-//! (`B5 62` sync, Fletcher checksum; its NMEA is read too); otherwise
+//! (`B5 62` sync, Fletcher checksum; its NMEA is read too); one holding a SiRF frame with a
+//! right checksum and end sequence is SiRF (`A0 A2` … `B0 B3`); otherwise
 //! [`GnssFormat::detect`]: the content decides when it is unambiguous (`<` first: GPX; `$`
 //! or `!` first: NMEA; a first line of numbers separated by commas: NCLT), else the file
 //! extension (`.gpx`, `.nmea`/`.nma`, `.csv`), else NMEA (whose reader counts what it
@@ -35,6 +36,9 @@ pub enum GnssFormat {
     Nclt,
     /// u-blox UBX binary (`NAV-PVT`) mixed with NMEA, as u-blox receivers log.
     Ubx,
+    /// SiRF binary (MID 41 Geodetic Navigation Data, else MID 2 Measure Navigation Data),
+    /// as SiRF receivers (SiRF-II … SiRFstar IV) log.
+    Sirf,
 }
 
 impl GnssFormat {
@@ -45,6 +49,7 @@ impl GnssFormat {
             Self::Gpx => "gpx",
             Self::Nclt => "nclt",
             Self::Ubx => "ubx",
+            Self::Sirf => "sirf",
         }
     }
 
@@ -56,6 +61,7 @@ impl GnssFormat {
             "nmea" | "nma" => Some(Self::Nmea),
             "csv" => Some(Self::Nclt),
             "ubx" => Some(Self::Ubx),
+            "sirf" | "srf" => Some(Self::Sirf),
             _ => None,
         }
     }
@@ -102,6 +108,9 @@ impl GnssFormat {
     pub fn detect_bytes(path: &Path, bytes: &[u8]) -> Self {
         if super::ubx::contains_ubx(bytes) {
             return Self::Ubx;
+        }
+        if super::sirf::contains_sirf(bytes) {
+            return Self::Sirf;
         }
         Self::detect(path, &String::from_utf8_lossy(bytes))
     }
@@ -238,6 +247,38 @@ impl GnssFileStats {
         }
     }
 
+    /// The counts of the SiRF reader in this form (NMEA lines and SiRF frames together).
+    pub fn from_sirf(stats: &super::sirf::SirfStats, records: &[GnssRecord]) -> Self {
+        let fixes = records.iter().filter(|r| r.fix.is_some()).count();
+        let mut messages = Vec::new();
+        if stats.skipped() > stats.other {
+            messages.push(format!(
+                "SiRF: {} frames, {} MID 2 and {} MID 41 read; skipped {} bad checksum, {} truncated, {} invalid",
+                stats.frames,
+                stats.navigation,
+                stats.geodetic,
+                stats.bad_checksum,
+                stats.truncated,
+                stats.invalid,
+            ));
+        }
+        messages.extend(stats.nmea.messages.iter().cloned());
+        messages.truncate(MAX_GNSS_MESSAGES);
+        Self {
+            entries: stats.frames + stats.bad_checksum + stats.truncated + stats.nmea.lines,
+            fixes,
+            no_fix: records.len() - fixes,
+            other_skipped: stats.invalid
+                + stats.bad_checksum
+                + stats.truncated
+                + stats.nmea.bad_checksum
+                + stats.nmea.truncated
+                + stats.nmea.invalid,
+            messages,
+            ..Self::new(GnssFormat::Sirf)
+        }
+    }
+
     /// The counts of the NMEA reader in this form.
     pub fn from_nmea(stats: &NmeaStats, records: &[GnssRecord]) -> Self {
         let fixes = records.iter().filter(|r| r.fix.is_some()).count();
@@ -352,6 +393,11 @@ pub fn read_gnss_file(
         GnssFormat::Ubx => {
             let (records, stats) = super::ubx::read_ubx(&bytes);
             let summary = GnssFileStats::from_ubx(&stats, &records);
+            (records, summary, Some(stats.nmea))
+        }
+        GnssFormat::Sirf => {
+            let (records, stats) = super::sirf::read_sirf(&bytes);
+            let summary = GnssFileStats::from_sirf(&stats, &records);
             (records, summary, Some(stats.nmea))
         }
         GnssFormat::Gpx => {

@@ -28,8 +28,10 @@
 
 pub mod gnss;
 pub mod gpx;
+pub mod imu;
 pub mod nclt_gps;
 pub mod nmea;
+pub mod sirf;
 mod tables;
 pub mod truth_formats;
 pub mod ubx;
@@ -283,6 +285,7 @@ pub struct Drive {
     nmea_stats: Option<NmeaStats>,
     gnss_stats: Option<gnss::GnssFileStats>,
     truth: Vec<TruthRecord>,
+    imu: Vec<imu::ImuSample>,
     warnings: Vec<String>,
 }
 
@@ -327,6 +330,7 @@ impl Drive {
             nmea_stats: None,
             gnss_stats: None,
             truth: Vec::new(),
+            imu: Vec::new(),
             warnings,
         };
         if let Some(name) = &manifest.detections {
@@ -382,6 +386,23 @@ impl Drive {
                     .warnings
                     .push(format!("{message}; the drive is read without truth")),
             }
+        }
+        // IMU samples (`imu.csv` beside the manifest, as `vgps import mcap` writes them) are
+        // optional: a bad row is a warning naming its line and field.
+        let imu_path = dir.join(imu::IMU_FILE);
+        if imu_path.is_file() {
+            let (samples, errors) = imu::imu_from_text(&imu_path, &read_text(&imu_path)?);
+            for e in errors.iter().take(gnss::MAX_GNSS_MESSAGES) {
+                drive.warnings.push(format!("{e}; sample skipped"));
+            }
+            if errors.len() > gnss::MAX_GNSS_MESSAGES {
+                drive.warnings.push(format!(
+                    "{}: {} bad IMU samples in all",
+                    imu_path.display(),
+                    errors.len()
+                ));
+            }
+            drive.imu = samples;
         }
         Ok(drive)
     }
@@ -480,6 +501,16 @@ impl Drive {
     /// Messages about detections rows that belong to no frame of the drive.
     pub fn orphan_rows(&self) -> &[String] {
         &self.orphans
+    }
+
+    /// The IMU samples (`imu.csv`), in time order; empty without the file.
+    pub fn imu(&self) -> &[imu::ImuSample] {
+        &self.imu
+    }
+
+    /// The IMU's attitude prior at `time_s` ([`imu::attitude_at`]), if any.
+    pub fn attitude_at(&self, time_s: f64) -> Option<vgps_core::localizer::AttitudePrior> {
+        imu::attitude_at(&self.imu, time_s)
     }
 
     /// Every GNSS epoch, in time order.
