@@ -16,16 +16,16 @@
 
 use nalgebra::Vector3;
 use numpy::ndarray::{Array1, Array2, Array3, ArrayView2};
-use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArrayLike1, PyArrayLike2, PyArrayLikeDyn};
-use pyo3::exceptions::{PyValueError};
+use numpy::{
+    AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArrayLike1, PyArrayLike2, PyArrayLikeDyn,
+};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use std::path::PathBuf;
 use std::sync::Arc;
 use vgps_camera::calibration::{CameraModel, Pixel, Rig};
-use vgps_core::localizer::{
-    self, Frame, GnssPosition, LandmarkMap, LocalizerOptions, Observation,
-};
+use vgps_core::localizer::{self, Frame, GnssPosition, LandmarkMap, LocalizerOptions, Observation};
 use vgps_geometry::geo::Geodetic;
 use vgps_geometry::geometry::{Pose, Ray};
 use vgps_geometry::triangulation::{RayObservation, triangulate_rays};
@@ -47,10 +47,7 @@ fn shape_error(name: &str, expected: &str, got: &[usize]) -> PyErr {
 }
 
 /// The rows of an `(N, k)` array, checked.
-fn rows<const K: usize>(
-    name: &str,
-    array: &ArrayView2<'_, f64>,
-) -> PyResult<Vec<[f64; K]>> {
+fn rows<const K: usize>(name: &str, array: &ArrayView2<'_, f64>) -> PyResult<Vec<[f64; K]>> {
     let shape = array.shape();
     if shape[1] != K {
         return Err(shape_error(name, &format!("(N, {K})"), shape));
@@ -167,8 +164,8 @@ fn triangulate<'py>(
             d.len()
         )));
     }
-    let per_ray = |name: &str, a: &Option<PyArrayLike1<'py, f64, AllowTypeChange>>, default: f64| {
-        match a {
+    let per_ray =
+        |name: &str, a: &Option<PyArrayLike1<'py, f64, AllowTypeChange>>, default: f64| match a {
             None => Ok(vec![default; o.len()]),
             Some(a) => {
                 let v = a.as_array();
@@ -178,15 +175,15 @@ fn triangulate<'py>(
                     n => Err(shape_error(name, &format!("() or ({},)", o.len()), &[n])),
                 }
             }
-        }
-    };
+        };
     let sp = per_ray("sigma_pos_m", &sigma_pos_m, 0.0)?;
     let sa = per_ray("sigma_rad", &sigma_rad, 0.1_f64.to_radians())?;
     let mut obs = Vec::with_capacity(o.len());
     for (k, (origin, direction)) in o.iter().zip(&d).enumerate() {
-        let ray = Ray::try_new(Vector3::from(*origin), Vector3::from(*direction)).ok_or_else(
-            || VgpsError::new_err(format!("ray {k}: zero or non-finite direction or origin")),
-        )?;
+        let ray =
+            Ray::try_new(Vector3::from(*origin), Vector3::from(*direction)).ok_or_else(|| {
+                VgpsError::new_err(format!("ray {k}: zero or non-finite direction or origin"))
+            })?;
         obs.push(RayObservation {
             ray,
             sigma_pos_m: sp[k],
@@ -243,10 +240,7 @@ impl Calibration {
         self.rig
             .cameras()
             .iter()
-            .map(|c| {
-                let (w, h) = c.model.image_size();
-                (w, h)
-            })
+            .map(|c| c.model.image_size())
             .collect()
     }
 
@@ -313,7 +307,10 @@ impl Calibration {
                             .try_pixel(&c.rig_from_camera.rotation.inverse_transform_vector(&d))
                             .map(|p| (cams[k], p))
                     }),
-                    None => rig.project_direction(&d).first().map(|h| (h.camera, h.pixel)),
+                    None => rig
+                        .project_direction(&d)
+                        .first()
+                        .map(|h| (h.camera, h.pixel)),
                 };
                 if let Some((c, p)) = hit {
                     pixels[2 * k] = p.x;
@@ -378,14 +375,22 @@ fn landmarks_arg(landmarks: &Bound<'_, PyAny>) -> PyResult<(Vec<Landmark>, PathB
     })?;
     let lla = rows::<3>("landmarks lat_lon_alt", &lla.as_array())?;
     if ids.len() != lla.len() {
-        return Err(shape_error("landmarks lat_lon_alt", &format!("({}, 3)", ids.len()), &[lla.len(), 3]));
+        return Err(shape_error(
+            "landmarks lat_lon_alt",
+            &format!("({}, 3)", ids.len()),
+            &[lla.len(), 3],
+        ));
     }
     let sigma = match sigma {
         None => vec![None; ids.len()],
         Some(s) => {
             let s = s.as_array();
             if s.len() != ids.len() {
-                return Err(shape_error("landmarks sigma_m", &format!("({},)", ids.len()), &[s.len()]));
+                return Err(shape_error(
+                    "landmarks sigma_m",
+                    &format!("({},)", ids.len()),
+                    &[s.len()],
+                ));
             }
             s.iter().map(|&v| Some(v)).collect()
         }
@@ -409,7 +414,10 @@ fn landmarks_arg(landmarks: &Bound<'_, PyAny>) -> PyResult<(Vec<Landmark>, PathB
 }
 
 /// A `(lat, lon, alt, radius_m)` tuple as the CLI's `--prior`.
-fn area_arg(name: &str, area: Option<(f64, f64, f64, f64)>) -> PyResult<Option<vgps::cli::PriorArg>> {
+fn area_arg(
+    name: &str,
+    area: Option<(f64, f64, f64, f64)>,
+) -> PyResult<Option<vgps::cli::PriorArg>> {
     let Some((lat, lon, alt, radius_m)) = area else {
         return Ok(None);
     };
@@ -496,7 +504,9 @@ fn _locate<'py>(
         })
         .collect();
     if !(sigma_deg.is_finite() && sigma_deg > 0.0) {
-        return Err(PyValueError::new_err(format!("sigma_deg {sigma_deg} must be positive")));
+        return Err(PyValueError::new_err(format!(
+            "sigma_deg {sigma_deg} must be positive"
+        )));
     }
     let prior = area_arg("prior", prior)?;
     let region = area_arg("region", region)?;
@@ -541,7 +551,11 @@ fn _run_cli(py: Python<'_>, args: Vec<String>) -> PyResult<String> {
             .filter_map(|l| l.strip_prefix("vgps: error: "))
             .collect::<Vec<_>>()
             .join("\n");
-        let message = if message.is_empty() { err.trim().to_string() } else { message };
+        let message = if message.is_empty() {
+            err.trim().to_string()
+        } else {
+            message
+        };
         Err(VgpsError::new_err(message))
     }
 }
@@ -607,8 +621,9 @@ impl Localizer {
             gnss_prior_radius_m: gnss_prior_radius_m.unwrap_or(defaults.gnss_prior_radius_m),
             ..defaults
         };
-        let inner = localizer::Localizer::new(Arc::clone(&calibration.rig), Arc::clone(&map), options)
-            .map_err(|e| VgpsError::new_err(e.to_string()))?;
+        let inner =
+            localizer::Localizer::new(Arc::clone(&calibration.rig), Arc::clone(&map), options)
+                .map_err(|e| VgpsError::new_err(e.to_string()))?;
         Ok(Self { inner, map })
     }
 
@@ -637,7 +652,10 @@ impl Localizer {
         }
         if let Some(b) = &bearings {
             let sigma_rad = sigma_rad.unwrap_or(vgps_core::measurement::DEFAULT_BEARING_SIGMA_RAD);
-            for (k, d) in rows::<3>("bearings", &b.as_array())?.into_iter().enumerate() {
+            for (k, d) in rows::<3>("bearings", &b.as_array())?
+                .into_iter()
+                .enumerate()
+            {
                 let ray = Ray::try_new(Vector3::zeros(), Vector3::from(d)).ok_or_else(|| {
                     PyValueError::new_err(format!("bearings row {k}: zero or non-finite"))
                 })?;
@@ -672,8 +690,12 @@ impl Localizer {
         match &fix.estimate {
             None => {
                 for key in [
-                    "lat_lon_alt", "position_enu", "enu_from_rig_wxyz", "heading_pitch_roll_deg",
-                    "covariance", "rms_residual_rad",
+                    "lat_lon_alt",
+                    "position_enu",
+                    "enu_from_rig_wxyz",
+                    "heading_pitch_roll_deg",
+                    "covariance",
+                    "rms_residual_rad",
                 ] {
                     d.set_item(key, py.None())?;
                 }
@@ -682,7 +704,10 @@ impl Localizer {
             }
             Some(e) => {
                 let g = e.geodetic;
-                d.set_item("lat_lon_alt", PyArray1::from_slice(py, &[g.lat_deg, g.lon_deg, g.alt_m]))?;
+                d.set_item(
+                    "lat_lon_alt",
+                    PyArray1::from_slice(py, &[g.lat_deg, g.lon_deg, g.alt_m]),
+                )?;
                 d.set_item(
                     "position_enu",
                     PyArray1::from_slice(py, e.world_from_rig.translation.vector.as_slice()),
