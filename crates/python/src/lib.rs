@@ -152,8 +152,8 @@ fn triangulate<'py>(
     py: Python<'py>,
     origins: PyArrayLike2<'py, f64, AllowTypeChange>,
     directions: PyArrayLike2<'py, f64, AllowTypeChange>,
-    sigma_pos_m: Option<PyArrayLike1<'py, f64, AllowTypeChange>>,
-    sigma_rad: Option<PyArrayLike1<'py, f64, AllowTypeChange>>,
+    sigma_pos_m: Option<PyArrayLikeDyn<'py, f64, AllowTypeChange>>,
+    sigma_rad: Option<PyArrayLikeDyn<'py, f64, AllowTypeChange>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let o = rows::<3>("origins", &origins.as_array())?;
     let d = rows::<3>("directions", &directions.as_array())?;
@@ -165,13 +165,13 @@ fn triangulate<'py>(
         )));
     }
     let per_ray =
-        |name: &str, a: &Option<PyArrayLike1<'py, f64, AllowTypeChange>>, default: f64| match a {
+        |name: &str, a: &Option<PyArrayLikeDyn<'py, f64, AllowTypeChange>>, default: f64| match a {
             None => Ok(vec![default; o.len()]),
             Some(a) => {
-                let v = a.as_array();
+                let v: Vec<f64> = a.as_array().iter().copied().collect();
                 match v.len() {
                     1 => Ok(vec![v[0]; o.len()]),
-                    n if n == o.len() => Ok(v.to_vec()),
+                    n if n == o.len() => Ok(v),
                     n => Err(shape_error(name, &format!("() or ({},)", o.len()), &[n])),
                 }
             }
@@ -207,7 +207,7 @@ fn triangulate<'py>(
 /// >>> import numpy as np, vgps
 /// >>> cal = vgps.Calibration.load("calibration/equirectangular_2048x1024.json")
 /// >>> b = cal.pixel_to_bearing(np.array([[1023.5, 511.5]]))   # camera 0
-/// >>> px, visible = cal.bearing_to_pixel(b)
+/// >>> px, visible, camera = cal.bearing_to_pixel(b)
 /// >>> bool(visible.all() and np.allclose(px, [[1023.5, 511.5]]))
 /// True
 #[pyclass(frozen, module = "vgps")]
