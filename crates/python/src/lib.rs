@@ -629,7 +629,7 @@ impl Localizer {
 
     /// Processes one frame (releases the GIL); see the Python docstring.
     #[pyo3(signature = (time_s, *, pixels = None, camera = None, bearings = None,
-        sigma_rad = None, gnss = None))]
+        sigma_rad = None, gnss = None, classes = None))]
     #[allow(clippy::too_many_arguments)]
     fn process<'py>(
         &mut self,
@@ -640,15 +640,30 @@ impl Localizer {
         bearings: Option<PyArrayLike2<'py, f64, AllowTypeChange>>,
         sigma_rad: Option<f64>,
         gnss: Option<(f64, f64, f64)>,
+        classes: Option<Vec<Option<String>>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let mut observations = Vec::new();
         if let Some(p) = &pixels {
             let p = rows::<2>("pixels", &p.as_array())?;
             let cams = cameras_arg(camera, p.len())?;
-            observations.extend(p.iter().zip(cams).map(|(&[u, v], camera)| Observation {
-                measurement: localizer::Measurement::Pixel { camera, u, v },
-                class: None,
-            }));
+            let classes = classes.unwrap_or_else(|| vec![None; p.len()]);
+            if classes.len() != p.len() {
+                return Err(shape_error(
+                    "classes",
+                    &format!("({},)", p.len()),
+                    &[classes.len()],
+                ));
+            }
+            let map = &self.map;
+            observations.extend(
+                p.iter()
+                    .zip(cams)
+                    .zip(classes)
+                    .map(|((&[u, v], camera), c)| Observation {
+                        measurement: localizer::Measurement::Pixel { camera, u, v },
+                        class: c.as_deref().and_then(|c| map.class_index(c)),
+                    }),
+            );
         }
         if let Some(b) = &bearings {
             let sigma_rad = sigma_rad.unwrap_or(vgps_core::measurement::DEFAULT_BEARING_SIGMA_RAD);

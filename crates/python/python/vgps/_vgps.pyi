@@ -67,6 +67,7 @@ class Localizer:
         bearings: Optional[npt.ArrayLike] = None,
         sigma_rad: Optional[float] = None,
         gnss: Optional[Tuple[float, float, float]] = None,
+        classes: Optional[Sequence[Optional[str]]] = None,
     ) -> Dict[str, Any]:
         """One frame in; ``status``, ``lat_lon_alt``, ``position_enu``, ``enu_from_rig_wxyz``,
         ``heading_pitch_roll_deg``, ``covariance`` (6x6), ``landmarks``, … out."""
