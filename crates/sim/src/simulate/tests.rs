@@ -288,8 +288,7 @@ fn a_short_route_starts_with_surveyed_lamps_in_view() {
                     .filter_map(|v| match v.source {
                         Source::Landmark(i)
                             if drive.world.landmarks[i].surveyed
-                                && drive.world.landmarks[i].class
-                                    == LandmarkClass::Streetlight =>
+                                && drive.world.landmarks[i].class == LandmarkClass::Streetlight =>
                         {
                             Some(i)
                         }
