@@ -158,6 +158,10 @@ fn simulate_images_detect_and_replay() {
     ]));
     let value: serde_json::Value = serde_json::from_str(&json).unwrap();
     assert_eq!(value["frames"], 20, "{json}");
+    // The first 20 frames are in the route's surveyed lead-in: lamps alone, found in the
+    // pixels, fix them (before the lead-in, the survey gap's zone covered this whole drive
+    // and no frame after the first had a fix).
+    assert!(value["visual_fixes"].as_u64().unwrap_or(0) >= 19, "{json}");
     assert!(!json.contains("bad_image"), "{json}");
     assert!(report.join("report.json").is_file());
 

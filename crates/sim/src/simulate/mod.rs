@@ -69,6 +69,13 @@ const INTEGRATION_STEP_S: f64 = 0.01;
 const SURVEY_GAP_MARGIN_M: f64 = 10.0;
 /// Spacing of the route samples used to find the landmarks near the survey gap, metres.
 const GAP_SAMPLE_M: f64 = 5.0;
+/// The first this many metres of a route are surveyed: the survey gap starts no earlier,
+/// and the landmarks within the detection range of this stretch stay out of the gap's
+/// unsurveyed zone. A drive starts where the survey covers the street, as a user switching
+/// vgps on in a surveyed city; without it the zone of a short route's gap (the gap plus the
+/// detection range around it) covered the whole route, so no frame had a surveyed
+/// landmark in view at night (the README's 150 m drive: 0 surveyed lamps after frame 10).
+pub const SURVEYED_LEAD_IN_M: f64 = 100.0;
 /// Attempts to place one transient light in some camera's view.
 const TRANSIENT_ATTEMPTS: usize = 10;
 /// Smallest share of the route without a GPS fix (the canyon outage is lengthened to reach
@@ -166,7 +173,8 @@ pub struct Scenario {
     pub false_fraction: f64,
     /// Length of the stretch whose landmarks are all unsurveyed (GPS is out there too).
     pub survey_gap_m: f64,
-    /// Where the survey gap starts, as a fraction of the route length.
+    /// Where the survey gap starts, as a fraction of the route length (never before
+    /// [`SURVEYED_LEAD_IN_M`]; the gap is cut at the route's end).
     pub survey_gap_at: f64,
     /// Length of the second GPS outage (urban canyon).
     pub canyon_outage_m: f64,
@@ -521,8 +529,8 @@ pub fn simulate(sc: &Scenario) -> Result<SimulatedDrive, SimulateError> {
     let mut world = World::generate(&mut rng_world, &city, (i0 - 1, i1 + 1, j0 - 1, j1 + 1));
 
     // Outages: the survey gap, then the canyon.
-    let gap_len = sc.survey_gap_m.min(0.4 * length);
-    let gap_start = sc.survey_gap_at * length;
+    let gap_start = (sc.survey_gap_at * length).max(SURVEYED_LEAD_IN_M.min(length));
+    let gap_len = sc.survey_gap_m.min(0.4 * length).min(length - gap_start);
     // Long routes: the canyon outage grows so that the outages cover MIN_OUTAGE_SHARE.
     let canyon_len = sc
         .canyon_outage_m
@@ -557,9 +565,18 @@ pub fn simulate(sc: &Scenario) -> Result<SimulatedDrive, SimulateError> {
         Vec::new()
     };
     let gap_radius = sc.range_m + SURVEY_GAP_MARGIN_M;
+    let lead_in_points: Vec<Vector2<f64>> = if gap_len > 0.0 {
+        let lead_in = SURVEYED_LEAD_IN_M.min(length);
+        (0..=((lead_in / GAP_SAMPLE_M).ceil() as usize))
+            .map(|k| route.at((k as f64 * GAP_SAMPLE_M).min(lead_in)).0)
+            .collect()
+    } else {
+        Vec::new()
+    };
     for l in &mut world.landmarks {
         let xy = l.position_in_enu.xy();
-        let near_gap = gap_points.iter().any(|g| (g - xy).norm() < gap_radius);
+        let in_lead_in = lead_in_points.iter().any(|g| (g - xy).norm() < sc.range_m);
+        let near_gap = !in_lead_in && gap_points.iter().any(|g| (g - xy).norm() < gap_radius);
         let drawn: f64 = rng_world.random();
         l.surveyed = !near_gap && drawn < sc.surveyed_fraction;
         let n = |r: &mut vgps_geometry::synthetic::TestRng| vgps_geometry::synthetic::normal(r);

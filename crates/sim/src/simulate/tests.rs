@@ -263,3 +263,46 @@ fn no_survey_gap_and_a_full_survey_leave_no_landmark_unsurveyed() {
     assert!(drive.world.landmarks.iter().any(|l| !l.surveyed));
     assert!(drive.outages.iter().any(|o| o.kind == "survey_gap"));
 }
+
+#[test]
+fn a_short_route_starts_with_surveyed_lamps_in_view() {
+    // The README's 150 m drive: before the lead-in, the survey gap's unsurveyed zone (the
+    // gap plus the detection range around it) covered the whole route, so at night (lamps
+    // only) no frame after the first few had a surveyed lamp in view.
+    for seed in [1, 2, 3] {
+        let mut sc = Scenario::preset(Preset::Short, seed);
+        sc.length_m = 150.0;
+        let drive = simulate(&sc).unwrap();
+        let gap = drive.outages.iter().find(|o| o.kind == "survey_gap");
+        assert!(gap.is_none_or(|o| o.start_m >= SURVEYED_LEAD_IN_M - 1e-9));
+        let lead_in: Vec<&SimFrame> = drive
+            .frames
+            .iter()
+            .filter(|f| f.arc_m <= SURVEYED_LEAD_IN_M)
+            .collect();
+        let with_three = lead_in
+            .iter()
+            .filter(|f| {
+                f.visible
+                    .iter()
+                    .filter_map(|v| match v.source {
+                        Source::Landmark(i)
+                            if drive.world.landmarks[i].surveyed
+                                && drive.world.landmarks[i].class == LandmarkClass::Streetlight =>
+                        {
+                            Some(i)
+                        }
+                        _ => None,
+                    })
+                    .collect::<BTreeSet<_>>()
+                    .len()
+                    >= 3
+            })
+            .count();
+        assert!(
+            with_three * 10 >= lead_in.len() * 9,
+            "seed {seed}: {with_three} of {} lead-in frames see 3 surveyed lamps",
+            lead_in.len()
+        );
+    }
+}
