@@ -256,7 +256,7 @@ fn gpx_time(time_s: f64) -> Option<gpx::Time> {
 fn gpx_point(g: &Geodetic, time_s: f64) -> Option<gpx::Waypoint> {
     let lat = rounded(g.lat_deg, LATLON_DECIMALS)?;
     let lon = rounded(g.lon_deg, LATLON_DECIMALS)?;
-    let mut p = gpx::Waypoint::new(gpx::GpxPoint::new(lon, lat));
+    let mut p = gpx::Waypoint::new((lon, lat).into());
     p.elevation = rounded(g.alt_m, METRE_DECIMALS);
     p.time = gpx_time(time_s);
     Some(p)
