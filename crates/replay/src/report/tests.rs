@@ -300,7 +300,7 @@ fn gpx_round_trip() {
     assert_eq!(gpx.creator.as_deref(), Some("vgps"));
     let meta = gpx.metadata.as_ref().unwrap();
     assert_eq!(meta.name.as_deref(), Some("test <drive> & co"));
-    let t0: time::OffsetDateTime = meta.time.unwrap().into();
+    let t0: ::time::OffsetDateTime = meta.time.unwrap().into();
     assert_eq!(t0.unix_timestamp_nanos(), T0 as i128 * 1_000_000_000);
     let names: Vec<_> = gpx.tracks.iter().map(|t| t.name.clone().unwrap()).collect();
     assert_eq!(names, ["visual", "gnss", "truth"]);
@@ -333,7 +333,7 @@ fn gpx_round_trip() {
             assert!((p.elevation.unwrap() - g.alt_m).abs() <= 5e-4, "{p:?}");
             match p.time {
                 Some(t) => {
-                    let ns = time::OffsetDateTime::from(t).unix_timestamp_nanos();
+                    let ns = ::time::OffsetDateTime::from(t).unix_timestamp_nanos();
                     assert_eq!(ns, (r.time_s * 1e3).round() as i128 * 1_000_000, "{p:?}");
                 }
                 None => assert_eq!(r.time_s, 3e11, "{p:?}"),
