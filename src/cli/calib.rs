@@ -55,7 +55,7 @@ pub enum CalibCommand {
 }
 
 /// How to read a calibration.
-#[derive(Debug, Clone, clap::Args)]
+#[derive(Debug, Clone, PartialEq, clap::Args)]
 pub struct SourceArgs {
     /// Calibration format (default: detected from the file): native, ladybug-ini, nclt,
     /// ladybug-conf.
@@ -119,19 +119,127 @@ fn parse_format(s: &str) -> Result<Format, String> {
     s.parse()
 }
 
+/// Validated settings of `vgps calib …` ([`super::Settings::Calib`]): what to read and
+/// what to do with it.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CalibSettings {
+    /// `show FILE`.
+    Show {
+        /// The calibration file (or NCLT directory).
+        file: PathBuf,
+        /// Format and image size.
+        source: SourceArgs,
+    },
+    /// `check FILE`.
+    Check {
+        /// The calibration file (or NCLT directory).
+        file: PathBuf,
+        /// Format and image size.
+        source: SourceArgs,
+    },
+    /// `bearings --calibration FILE`.
+    Bearings {
+        /// The calibration file (or NCLT directory).
+        calibration: PathBuf,
+        /// Format and image size.
+        source: SourceArgs,
+    },
+    /// `pixels --calibration FILE`.
+    Pixels {
+        /// The calibration file (or NCLT directory).
+        calibration: PathBuf,
+        /// Format and image size.
+        source: SourceArgs,
+    },
+    /// `convert IN --to native|lut OUT`.
+    Convert {
+        /// The input calibration.
+        input: PathBuf,
+        /// Format and image size of the input.
+        source: SourceArgs,
+        /// The output format.
+        to: ConvertTo,
+        /// The output JSON file.
+        output: PathBuf,
+    },
+}
+
+/// The validated output format of `convert`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ConvertTo {
+    /// Native JSON with the same models.
+    Native,
+    /// Native JSON with LUT cameras sampled every `step` pixels.
+    Lut {
+        /// The LUT grid step in pixels.
+        step: std::num::NonZeroU32,
+    },
+}
+
+impl TryFrom<CalibArgs> for CalibSettings {
+    type Error = super::CliError;
+
+    /// # Errors
+    /// [`super::CliError::Calibration`] (exit 2) when `convert --to lut` has `--step 0`.
+    fn try_from(a: CalibArgs) -> Result<Self, Self::Error> {
+        Ok(match a.command {
+            CalibCommand::Show(a) => Self::Show {
+                file: a.file,
+                source: a.source,
+            },
+            CalibCommand::Check(a) => Self::Check {
+                file: a.file,
+                source: a.source,
+            },
+            CalibCommand::Bearings(a) => Self::Bearings {
+                calibration: a.calibration,
+                source: a.source,
+            },
+            CalibCommand::Pixels(a) => Self::Pixels {
+                calibration: a.calibration,
+                source: a.source,
+            },
+            CalibCommand::Convert(a) => Self::Convert {
+                to: match a.to {
+                    ConvertTarget::Native => ConvertTo::Native,
+                    ConvertTarget::Lut => ConvertTo::Lut {
+                        step: std::num::NonZeroU32::new(a.step).ok_or_else(|| {
+                            super::CliError::Calibration("--step must be at least 1".into())
+                        })?,
+                    },
+                },
+                input: a.input,
+                source: a.source,
+                output: a.output,
+            },
+        })
+    }
+}
+
 /// Runs `vgps calib …` and returns the process exit code (0; 1 when `convert` cannot write
 /// its output; 2 on any other failure).
-pub fn run(args: CalibArgs) -> ExitCode {
-    let result = match args.command {
-        CalibCommand::Show(a) => load(&a.file, &a.source)
-            .and_then(|rig| show(&a.file, &rig))
-            .and_then(|()| file_info(&a.file, &a.source, false)),
-        CalibCommand::Check(a) => load(&a.file, &a.source)
-            .and_then(|rig| check(&a.file, &rig))
-            .and_then(|()| file_info(&a.file, &a.source, true)),
-        CalibCommand::Bearings(a) => load(&a.calibration, &a.source).and_then(|rig| bearings(&rig)),
-        CalibCommand::Pixels(a) => load(&a.calibration, &a.source).and_then(|rig| pixels(&rig)),
-        CalibCommand::Convert(a) => match convert(&a) {
+pub fn run(settings: &CalibSettings) -> ExitCode {
+    let result = match settings {
+        CalibSettings::Show { file, source } => load(file, source)
+            .and_then(|rig| show(file, &rig))
+            .and_then(|()| file_info(file, source, false)),
+        CalibSettings::Check { file, source } => load(file, source)
+            .and_then(|rig| check(file, &rig))
+            .and_then(|()| file_info(file, source, true)),
+        CalibSettings::Bearings {
+            calibration,
+            source,
+        } => load(calibration, source).and_then(|rig| bearings(&rig)),
+        CalibSettings::Pixels {
+            calibration,
+            source,
+        } => load(calibration, source).and_then(|rig| pixels(&rig)),
+        CalibSettings::Convert {
+            input,
+            source,
+            to,
+            output,
+        } => match convert(input, source, *to, output) {
             Err(ConvertError::Output(message)) => {
                 eprintln!("vgps calib: {message}");
                 return ExitCode::from(super::EXIT_OUTPUT);
@@ -471,26 +579,26 @@ enum ConvertError {
     Output(String),
 }
 
-fn convert(a: &ConvertArgs) -> Result<(), ConvertError> {
-    let rig = load(&a.input, &a.source).map_err(ConvertError::Input)?;
-    let rig = match a.to {
-        ConvertTarget::Native => rig,
-        ConvertTarget::Lut => {
-            if a.step == 0 {
-                return Err(ConvertError::Input("--step must be at least 1".into()));
-            }
-            to_lut_rig(&rig, a.step, &a.input)
-                .map_err(|e: LoadError| ConvertError::Input(e.to_string()))?
-        }
+fn convert(
+    input: &Path,
+    source: &SourceArgs,
+    to: ConvertTo,
+    output: &Path,
+) -> Result<(), ConvertError> {
+    let rig = load(input, source).map_err(ConvertError::Input)?;
+    let rig = match to {
+        ConvertTo::Native => rig,
+        ConvertTo::Lut { step } => to_lut_rig(&rig, step.get(), input)
+            .map_err(|e: LoadError| ConvertError::Input(e.to_string()))?,
     };
-    formats::save_native(&rig, &a.output).map_err(|e| ConvertError::Output(e.to_string()))?;
+    formats::save_native(&rig, output).map_err(|e| ConvertError::Output(e.to_string()))?;
     eprintln!(
         "wrote {} ({} camera(s), {})",
-        a.output.display(),
+        output.display(),
         rig.len(),
-        match a.to {
-            ConvertTarget::Native => "native".to_string(),
-            ConvertTarget::Lut => format!("LUT step {} px", a.step),
+        match to {
+            ConvertTo::Native => "native".to_string(),
+            ConvertTo::Lut { step } => format!("LUT step {step} px"),
         }
     );
     Ok(())

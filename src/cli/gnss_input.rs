@@ -1,11 +1,12 @@
-//! `--gnss FILE [--gnss-format nmea|gpx|nclt] [--gnss-time-offset S]`: the satellite GPS of
+//! `--gnss FILE [--gnss-format nmea|gpx|nclt|ubx] [--gnss-time-offset S]`: the satellite GPS of
 //! a drive taken from another file (shared by `vgps replay` and `vgps map`).
 
 use super::CliError;
+use super::value_enums::GnssFormatArg;
 use std::io::Write;
 use std::path::PathBuf;
 use vgps_replay::drive::Drive;
-use vgps_replay::drive::gnss::{GnssFormat, read_gnss_file};
+use vgps_replay::drive::gnss::read_gnss_file;
 
 fn parse_finite(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {
@@ -23,7 +24,7 @@ pub struct GnssInputArgs {
     pub gnss: Option<PathBuf>,
     /// Format of `--gnss` (default: detected from the content, then the extension).
     #[arg(long, value_enum, value_name = "FORMAT", requires = "gnss")]
-    pub gnss_format: Option<GnssFormat>,
+    pub gnss_format: Option<GnssFormatArg>,
     /// Seconds added to every time of `--gnss` to put it on the drive clock (Unix UTC).
     #[arg(long, value_name = "S", default_value_t = 0.0, value_parser = parse_finite, allow_hyphen_values = true, requires = "gnss")]
     pub gnss_time_offset: f64,
@@ -40,8 +41,12 @@ impl GnssInputArgs {
         let Some(path) = &self.gnss else {
             return Ok(());
         };
-        let log = read_gnss_file(path, self.gnss_format, self.gnss_time_offset)
-            .map_err(|e| CliError::Calibration(e.to_string()))?;
+        let log = read_gnss_file(
+            path,
+            self.gnss_format.map(Into::into),
+            self.gnss_time_offset,
+        )
+        .map_err(|e| CliError::Calibration(e.to_string()))?;
         let s = &log.stats;
         if s.fixes == 0 {
             let _ = writeln!(

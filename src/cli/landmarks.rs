@@ -61,43 +61,74 @@ pub struct ImportArgs {
     pub default_height_sigma: f64,
 }
 
-/// Runs `vgps landmarks …`.
+/// Validated settings of `vgps landmarks import` ([`super::Settings::Landmarks`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct LandmarksSettings {
+    /// The inventory (GeoJSON or CSV).
+    pub input: PathBuf,
+    /// The output `landmarks.csv`.
+    pub out: PathBuf,
+    /// How features become landmarks (heights, σ).
+    pub options: GisOptions,
+}
+
+impl TryFrom<LandmarksArgs> for LandmarksSettings {
+    type Error = CliError;
+
+    /// # Errors
+    /// [`CliError::Input`] (exit 2) naming the option when `--default-lamp-height`,
+    /// `--sigma` or `--default-height-sigma` is not a non-negative number, or
+    /// `--ground-height` is not finite.
+    fn try_from(args: LandmarksArgs) -> Result<Self, CliError> {
+        let LandmarksCommand::Import(a) = args.command;
+        let bad = |field: &str, reason: String| {
+            CliError::Input(vgps_io::InputError::field("command line", 1, field, reason))
+        };
+        for (name, v) in [
+            ("--default-lamp-height", a.default_lamp_height),
+            ("--sigma", a.sigma),
+            ("--default-height-sigma", a.default_height_sigma),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(bad(name, format!("{v} is not a non-negative number")));
+            }
+        }
+        if let Some(g) = a.ground_height
+            && !g.is_finite()
+        {
+            return Err(bad(
+                "--ground-height",
+                format!("{g} is not a finite number"),
+            ));
+        }
+        Ok(Self {
+            options: GisOptions {
+                ground_height_m: a.ground_height,
+                reference: match a.heights {
+                    HeightReferenceArg::Geoid => GroundReference::Geoid,
+                    HeightReferenceArg::Ellipsoid => GroundReference::Ellipsoid,
+                },
+                default_lamp_height_m: a.default_lamp_height,
+                sigma_m: a.sigma,
+                default_height_sigma_m: a.default_height_sigma,
+                ..GisOptions::default()
+            },
+            input: a.input,
+            out: a.out,
+        })
+    }
+}
+
+/// Runs `vgps landmarks import` on validated settings.
 ///
 /// # Errors
 /// [`CliError::Input`] naming the file and the feature or line.
-pub fn run(args: &LandmarksArgs, out: &mut dyn Write, err: &mut dyn Write) -> Result<(), CliError> {
-    let LandmarksCommand::Import(a) = &args.command;
-    let bad = |field: &str, reason: String| {
-        CliError::Input(vgps_io::InputError::field("command line", 1, field, reason))
-    };
-    for (name, v) in [
-        ("--default-lamp-height", a.default_lamp_height),
-        ("--sigma", a.sigma),
-        ("--default-height-sigma", a.default_height_sigma),
-    ] {
-        if !(v.is_finite() && v >= 0.0) {
-            return Err(bad(name, format!("{v} is not a non-negative number")));
-        }
-    }
-    if let Some(g) = a.ground_height
-        && !g.is_finite()
-    {
-        return Err(bad(
-            "--ground-height",
-            format!("{g} is not a finite number"),
-        ));
-    }
-    let options = GisOptions {
-        ground_height_m: a.ground_height,
-        reference: match a.heights {
-            HeightReferenceArg::Geoid => GroundReference::Geoid,
-            HeightReferenceArg::Ellipsoid => GroundReference::Ellipsoid,
-        },
-        default_lamp_height_m: a.default_lamp_height,
-        sigma_m: a.sigma,
-        default_height_sigma_m: a.default_height_sigma,
-        ..GisOptions::default()
-    };
+pub fn run(
+    s: &LandmarksSettings,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Result<(), CliError> {
+    let (a, options) = (s, &s.options);
     let bytes = std::fs::read(&a.input).map_err(|source| vgps_io::InputError::Read {
         path: a.input.clone(),
         source,
@@ -105,11 +136,11 @@ pub fn run(args: &LandmarksArgs, out: &mut dyn Write, err: &mut dyn Write) -> Re
     let text = String::from_utf8_lossy(&bytes);
     let is_json = text.trim_start().starts_with('{');
     let read = if is_json {
-        gis::landmarks_from_geojson(&a.input, &text, &options)?
+        gis::landmarks_from_geojson(&a.input, &text, options)?
     } else {
-        gis::landmarks_from_gis_csv(&a.input, &text, &options)?
+        gis::landmarks_from_gis_csv(&a.input, &text, options)?
     };
-    if let Some(w) = read.warning(&a.input, &options) {
+    if let Some(w) = read.warning(&a.input, options) {
         writeln!(err, "vgps: warning: {w}")?;
     }
     let csv = vgps_replay::drive::landmarks_to_csv(&read.landmarks);

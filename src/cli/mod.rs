@@ -25,11 +25,12 @@ pub mod robot_out;
 pub mod settings;
 pub mod simulate;
 pub mod triangulate;
+pub mod value_enums;
 
 pub use args::{Cli, PriorArg};
 pub use settings::{
-    DemoSettings, DetectSettings, LocateSettings, MapSettings, ReplaySettings, Settings,
-    SimulateSettings, TriangulateSettings,
+    CalibSettings, DemoSettings, DetectSettings, LandmarksSettings, LocateSettings, MapSettings,
+    ReplaySettings, Settings, SimulateSettings, TriangulateSettings,
 };
 
 use clap::Parser;
@@ -95,10 +96,11 @@ where
             return ExitCode::from(code);
         }
     };
-    if let args::Command::Calib(calib_args) = cli.command {
-        return calib::run(calib_args);
+    let settings = Settings::try_from(cli);
+    if let Ok(Settings::Calib(s)) = &settings {
+        return calib::run(s);
     }
-    let result = Settings::try_from(cli).and_then(|settings| match settings {
+    let result = settings.and_then(|settings| match settings {
         Settings::Locate(s) => locate::run(&s, out, err),
         Settings::Triangulate(s) => triangulate::run(&s, out, err),
         Settings::Demo(s) => demo::run(&s, out, err),

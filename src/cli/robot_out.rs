@@ -3,9 +3,10 @@
 //! (`--mcap FILE`). Neither can stop a replay: a stream that cannot listen, a client that
 //! leaves, no client at all are messages on stderr, and the replay's files are written.
 
+use super::value_enums::PaceArg;
 use std::io::Write;
 use std::path::PathBuf;
-use vgps_replay::live::{NmeaTcpServer, Pace, Pacer};
+use vgps_replay::live::{NmeaTcpServer, Pacer};
 use vgps_replay::report::{DriveInfo, FrameRecord};
 
 /// The robot-stack options of `vgps replay`.
@@ -18,7 +19,7 @@ pub struct RobotOutputArgs {
     /// Pace of the live stream: `real` sends each frame at the drive's own time, `fast` as
     /// soon as it is localized.
     #[arg(long, value_enum, default_value = "real")]
-    pub pace: Pace,
+    pub pace: PaceArg,
     /// Also write the fixes as ROS 2 messages (NavSatFix, PoseWithCovarianceStamped, Imu)
     /// into this MCAP file; see docs/ros2.md.
     #[arg(long, value_name = "FILE")]
@@ -59,7 +60,7 @@ impl LiveStream {
             });
         Self {
             server,
-            pacer: Pacer::new(args.pace),
+            pacer: Pacer::new(args.pace.into()),
             address,
         }
     }

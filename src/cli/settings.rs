@@ -8,7 +8,9 @@
 
 use super::CliError;
 use super::args::{Cli, Command, PriorArg};
+pub use super::calib::CalibSettings;
 use super::gnss_input::GnssInputArgs;
+pub use super::landmarks::LandmarksSettings;
 use super::map::{GpsOffset, MapArgs};
 use super::replay::{OutputFormat, ReplayArgs};
 use super::simulate::{PresetArg, SimulateArgs};
@@ -175,11 +177,11 @@ pub enum Settings {
     Triangulate(TriangulateSettings),
     /// `vgps demo`.
     Demo(DemoSettings),
-    /// `vgps calib …` (its subcommands are validated by their value parsers and run by
-    /// [`super::calib::run`], which reports on the process's own streams).
-    Calib(super::calib::CalibArgs),
+    /// `vgps calib …` (run by [`super::calib::run`], which reports on the process's own
+    /// streams).
+    Calib(CalibSettings),
     /// `vgps landmarks …`.
-    Landmarks(super::landmarks::LandmarksArgs),
+    Landmarks(LandmarksSettings),
     /// `vgps simulate`.
     Simulate(SimulateSettings),
     /// `vgps replay`.
@@ -188,7 +190,8 @@ pub enum Settings {
     Detect(DetectSettings),
     /// `vgps map`.
     Map(MapSettings),
-    /// `vgps import …` (validated by its value parsers).
+    /// `vgps import …` (every value is checked by its clap value parser; nothing is left
+    /// to resolve).
     Import(super::import::ImportArgs),
 }
 
@@ -233,8 +236,8 @@ impl TryFrom<Cli> for Settings {
                 format: a.format,
                 images: !a.no_images,
             }),
-            Command::Calib(a) => Settings::Calib(a),
-            Command::Landmarks(a) => Settings::Landmarks(a),
+            Command::Calib(a) => Settings::Calib(CalibSettings::try_from(a)?),
+            Command::Landmarks(a) => Settings::Landmarks(LandmarksSettings::try_from(a)?),
             Command::Simulate(a) => Settings::Simulate(SimulateSettings::from(a)),
             Command::Replay(a) => Settings::Replay(ReplaySettings::try_from(a)?),
             Command::Detect(a) => Settings::Detect(DetectSettings {
@@ -398,5 +401,133 @@ mod tests {
             PathBuf::from("D").join(super::super::map::DEFAULT_OUTPUT_NAME)
         );
         assert_eq!(s.strictness, Strictness::Lenient);
+    }
+
+    #[test]
+    fn calib_is_validated_once() {
+        use super::super::calib::ConvertTo;
+        let parse = |args: &[&str]| {
+            let mut all = vec!["vgps", "calib"];
+            all.extend_from_slice(args);
+            Settings::try_from(Cli::try_parse_from(all).unwrap())
+        };
+        let Settings::Calib(CalibSettings::Show { file, source }) =
+            parse(&["show", "c.ini", "--image-size", "1024x768"]).unwrap()
+        else {
+            panic!("not calib show")
+        };
+        assert_eq!(file, PathBuf::from("c.ini"));
+        assert_eq!(source.image_size, Some((1024, 768)));
+        let Settings::Calib(CalibSettings::Convert { to, output, .. }) =
+            parse(&["convert", "a.json", "--to", "lut", "--step", "8", "b.json"]).unwrap()
+        else {
+            panic!("not calib convert")
+        };
+        assert_eq!(output, PathBuf::from("b.json"));
+        assert_eq!(
+            to,
+            ConvertTo::Lut {
+                step: std::num::NonZeroU32::new(8).unwrap()
+            }
+        );
+        // The default step is 4; `--step` does not matter for `--to native`.
+        let Settings::Calib(CalibSettings::Convert { to, .. }) =
+            parse(&["convert", "a.json", "--to", "lut", "b.json"]).unwrap()
+        else {
+            panic!("not calib convert")
+        };
+        assert_eq!(
+            to,
+            ConvertTo::Lut {
+                step: std::num::NonZeroU32::new(4).unwrap()
+            }
+        );
+        let Settings::Calib(CalibSettings::Convert { to, .. }) = parse(&[
+            "convert", "a.json", "--to", "native", "--step", "0", "b.json",
+        ])
+        .unwrap() else {
+            panic!("not calib convert")
+        };
+        assert_eq!(to, ConvertTo::Native);
+        // A LUT step of 0 is refused before anything is read, with exit code 2.
+        let e = parse(&["convert", "a.json", "--to", "lut", "--step", "0", "b.json"]).unwrap_err();
+        assert_eq!(e.exit_code(), super::super::EXIT_INPUT);
+        assert_eq!(e.to_string(), "--step must be at least 1");
+        let (mut out, mut err) = (Vec::new(), Vec::new());
+        let code = super::super::run(
+            [
+                "vgps",
+                "calib",
+                "convert",
+                "missing.json",
+                "--to",
+                "lut",
+                "--step",
+                "0",
+                "o.json",
+            ],
+            &mut out,
+            &mut err,
+        );
+        assert_eq!(code, std::process::ExitCode::from(super::super::EXIT_INPUT));
+        assert_eq!(
+            String::from_utf8(err).unwrap(),
+            "vgps: error: --step must be at least 1\n"
+        );
+        // Values clap's parsers refuse never reach the settings.
+        for bad in [
+            &["show", "c.ini", "--image-size", "0x768"][..],
+            &["show", "c.ini", "--format", "yaml"],
+            &["convert", "a", "--to", "png", "b"],
+        ] {
+            let mut all = vec!["vgps", "calib"];
+            all.extend_from_slice(bad);
+            assert!(Cli::try_parse_from(all).is_err(), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn landmarks_is_validated_once() {
+        let parse = |extra: &[&str]| {
+            let mut all = vec!["vgps", "landmarks", "import", "l.geojson", "--out", "L.csv"];
+            all.extend_from_slice(extra);
+            Settings::try_from(Cli::try_parse_from(all).unwrap())
+        };
+        let Settings::Landmarks(s) =
+            parse(&["--ground-height", "-3.5", "--heights", "ellipsoid"]).unwrap()
+        else {
+            panic!("not landmarks")
+        };
+        assert_eq!(s.options.ground_height_m, Some(-3.5));
+        assert_eq!(
+            s.options.reference,
+            vgps_io::gis::GroundReference::Ellipsoid
+        );
+        assert_eq!(
+            (s.options.default_lamp_height_m, s.options.sigma_m),
+            (6.0, 0.5)
+        );
+        for (args, message) in [
+            (
+                &["--sigma=-1"][..],
+                "command line:1: field `--sigma`: -1 is not a non-negative number",
+            ),
+            (
+                &["--default-lamp-height", "NaN"],
+                "command line:1: field `--default-lamp-height`: NaN is not a non-negative number",
+            ),
+            (
+                &["--default-height-sigma", "inf"],
+                "command line:1: field `--default-height-sigma`: inf is not a non-negative number",
+            ),
+            (
+                &["--ground-height", "-inf"],
+                "command line:1: field `--ground-height`: -inf is not a finite number",
+            ),
+        ] {
+            let e = parse(args).unwrap_err();
+            assert_eq!(e.exit_code(), super::super::EXIT_INPUT, "{args:?}");
+            assert_eq!(e.to_string(), message, "{args:?}");
+        }
     }
 }

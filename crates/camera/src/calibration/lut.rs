@@ -22,7 +22,7 @@
 
 use super::{
     CalibrationError, CameraModel, Pixel, clamp_to_image, in_image_rectangle,
-    normalisation_jacobian, pixel_jacobian_from_bearing_jacobian,
+    normalisation_jacobian,
 };
 use nalgebra::{Matrix2x3, Matrix3x2, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
@@ -670,13 +670,6 @@ impl CameraModel for Lut {
     }
 
     fn try_pixel_with_jacobian(&self, bearing: &Vector3<f64>) -> Option<(Pixel, Matrix2x3<f64>)> {
-        let pixel = self.invert(bearing)?;
-        let (_, jb) = self.try_bearing_with_jacobian(&pixel)?;
-        let norm = bearing.norm();
-        let unit = bearing / norm;
-        Some((
-            pixel,
-            pixel_jacobian_from_bearing_jacobian(&jb, &unit, norm)?,
-        ))
+        super::pixel_with_inverted_jacobian(self, self.invert(bearing)?, bearing)
     }
 }

@@ -252,6 +252,38 @@ pub(crate) fn pixel_jacobian_from_bearing_jacobian(
     j.iter().all(|x| x.is_finite()).then_some(j)
 }
 
+/// The projection with its Jacobian for a model whose Jacobian is the inverse of its
+/// unprojection's: `pixel` (the model's projection of `bearing`) and `d pixel / d direction`
+/// from the model's `d bearing / d pixel` at `pixel`
+/// ([`pixel_jacobian_from_bearing_jacobian`]). `None` where the unprojection has no
+/// Jacobian or it is singular.
+pub(crate) fn pixel_with_inverted_jacobian<M: CameraModel + ?Sized>(
+    model: &M,
+    pixel: Pixel,
+    bearing: &Vector3<f64>,
+) -> Option<(Pixel, Matrix2x3<f64>)> {
+    let (_, jb) = model.try_bearing_with_jacobian(&pixel)?;
+    let norm = bearing.norm();
+    let unit = bearing / norm;
+    let jp = pixel_jacobian_from_bearing_jacobian(&jb, &unit, norm)?;
+    Some((pixel, jp))
+}
+
+/// The unit bearing of the ray direction `ray` and its Jacobian `d bearing / d pixel` =
+/// `N · d ray / d q · d q / d pixel` (`N` the [`normalisation_jacobian`]), for a model that
+/// maps a pixel to an intermediate point `q` (undistorted or rectified) and `q` to a ray.
+/// `None` for a zero ray or a Jacobian that is not finite.
+pub(crate) fn unit_bearing_with_jacobian(
+    ray: &Vector3<f64>,
+    dray_dq: &Matrix3x2<f64>,
+    dq_dpixel: &Matrix2<f64>,
+) -> Option<(Vector3<f64>, Matrix3x2<f64>)> {
+    let norm = ray.norm();
+    let unit = vgps_geometry::geometry::try_unit(ray)?;
+    let jac = normalisation_jacobian(&unit, norm) * dray_dq * dq_dpixel;
+    jac.iter().all(|v| v.is_finite()).then_some((unit, jac))
+}
+
 /// `d (v / |v|) / d v` = `(I - b bᵀ) / |v|` with `b = v / |v|`.
 #[inline]
 pub(crate) fn normalisation_jacobian(bearing: &Vector3<f64>, norm: f64) -> Matrix3<f64> {

@@ -4,7 +4,6 @@
 
 use super::{
     CalibrationError, CameraModel, Pixel, check_finite, check_positive, in_image_rectangle,
-    normalisation_jacobian,
 };
 use nalgebra::{Matrix2, Matrix2x3, Matrix3x2, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
@@ -385,19 +384,11 @@ impl CameraModel for TabulatedPinhole {
         }
         let (q, jq) = self.undistort(pixel);
         let (r, jr) = self.ray(&q);
-        let norm = r.norm();
-        let unit = vgps_geometry::geometry::try_unit(&r)?;
-        let jac = normalisation_jacobian(&unit, norm) * jr * jq;
-        jac.iter().all(|v| v.is_finite()).then_some((unit, jac))
+        super::unit_bearing_with_jacobian(&r, &jr, &jq)
     }
 
     fn try_pixel_with_jacobian(&self, bearing: &Vector3<f64>) -> Option<(Pixel, Matrix2x3<f64>)> {
-        let pixel = self.try_pixel(bearing)?;
-        let (_, jb) = self.try_bearing_with_jacobian(&pixel)?;
-        let norm = bearing.norm();
-        let unit = bearing / norm;
-        let jp = super::pixel_jacobian_from_bearing_jacobian(&jb, &unit, norm)?;
-        Some((pixel, jp))
+        super::pixel_with_inverted_jacobian(self, self.try_pixel(bearing)?, bearing)
     }
 }
 

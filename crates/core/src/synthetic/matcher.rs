@@ -35,6 +35,18 @@ pub const CLASS_CORNER: u32 = 1;
 /// Height of the rig above the street, metres.
 pub const RIG_HEIGHT_M: f64 = 2.0;
 
+/// A rig pose at `position` with a random heading and pitch and roll within ±3° (drawn in
+/// that order: roll, pitch, heading).
+pub fn rig_pose_at<R: Rng + ?Sized>(rng: &mut R, position: Vector3<f64>) -> Pose {
+    let tilt = 3.0_f64.to_radians();
+    let rotation = Rotation3::from_euler_angles(
+        rng.random_range(-tilt..=tilt),
+        rng.random_range(-tilt..=tilt),
+        rng.random_range(-std::f64::consts::PI..=std::f64::consts::PI),
+    );
+    Pose::from_parts(Translation3::from(position), rotation)
+}
+
 /// Layout of a synthetic city.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CityConfig {
@@ -301,13 +313,7 @@ impl CityWorld {
                 RIG_HEIGHT_M,
             )
         };
-        let tilt = 3.0_f64.to_radians();
-        let rotation = Rotation3::from_euler_angles(
-            rng.random_range(-tilt..=tilt),
-            rng.random_range(-tilt..=tilt),
-            rng.random_range(-std::f64::consts::PI..=std::f64::consts::PI),
-        );
-        Pose::from_parts(Translation3::from(p), rotation)
+        rig_pose_at(rng, p)
     }
 
     /// True when the straight line from `from` to the landmark is not blocked by a building

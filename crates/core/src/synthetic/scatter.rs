@@ -15,10 +15,10 @@
 
 use super::matcher::{
     FrameConfig, RIG_HEIGHT_M, SyntheticFrame, TRIAL_PRIOR_HALF_HEIGHT_M, TRIAL_PRIOR_RADIUS_M,
-    Trial, landmark_db,
+    Trial, landmark_db, rig_pose_at,
 };
 use crate::matcher::{LandmarkDb, MatchError, SearchArea};
-use nalgebra::{Rotation3, Translation3, Vector3};
+use nalgebra::Vector3;
 use rand::{Rng, RngExt};
 use vgps_geometry::geometry::{Pose, bearing_in_rig};
 use vgps_geometry::synthetic::{perturb_bearing, random_unit_vector};
@@ -99,13 +99,7 @@ impl ScatterWorld {
             rng.random_range(0.0..=s),
             RIG_HEIGHT_M,
         );
-        let tilt = 3.0_f64.to_radians();
-        let rotation = Rotation3::from_euler_angles(
-            rng.random_range(-tilt..=tilt),
-            rng.random_range(-tilt..=tilt),
-            rng.random_range(-std::f64::consts::PI..=std::f64::consts::PI),
-        );
-        Pose::from_parts(Translation3::from(p), rotation)
+        rig_pose_at(rng, p)
     }
 
     /// A frame: the `true_detections` nearest landmarks within `visibility_m` (no

@@ -26,7 +26,7 @@ use vgps_geometry::geo::Geodetic;
 pub const MAX_GNSS_MESSAGES: usize = 20;
 
 /// The formats of a satellite GPS file.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum GnssFormat {
     /// NMEA 0183 sentences (`GGA`, `RMC`, `HDT`).
     Nmea,
@@ -42,7 +42,11 @@ pub enum GnssFormat {
 }
 
 impl GnssFormat {
-    /// The format's name (`nmea`, `gpx`, `nclt`).
+    /// Every format, in the order of the documentation.
+    pub const ALL: [Self; 4] = [Self::Nmea, Self::Gpx, Self::Nclt, Self::Ubx];
+
+    /// The format's name (`nmea`, `gpx`, `nclt`, `ubx`): what [`std::str::FromStr`] reads
+    /// and [`std::fmt::Display`] writes.
     pub fn as_str(self) -> &'static str {
         match self {
             Self::Nmea => "nmea",
@@ -119,6 +123,31 @@ impl GnssFormat {
 impl std::fmt::Display for GnssFormat {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.as_str())
+    }
+}
+
+/// A name that is not one of [`GnssFormat::ALL`]'s.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("`{0}` is not a satellite GPS format (nmea, gpx, nclt or ubx)")]
+pub struct UnknownGnssFormat(pub String);
+
+impl std::str::FromStr for GnssFormat {
+    type Err = UnknownGnssFormat;
+
+    /// The format named `nmea`, `gpx`, `nclt` or `ubx` (any case; surrounding spaces
+    /// ignored).
+    ///
+    /// ```
+    /// use vgps_replay::drive::gnss::GnssFormat;
+    /// assert_eq!("GPX".parse::<GnssFormat>(), Ok(GnssFormat::Gpx));
+    /// assert!("kml".parse::<GnssFormat>().is_err());
+    /// ```
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let name = s.trim();
+        Self::ALL
+            .into_iter()
+            .find(|f| f.as_str().eq_ignore_ascii_case(name))
+            .ok_or_else(|| UnknownGnssFormat(s.to_owned()))
     }
 }
 
@@ -467,6 +496,20 @@ pub fn gnss_at(records: &[GnssRecord], time_s: f64) -> Option<Geodetic> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn names_round_trip() {
+        for f in GnssFormat::ALL {
+            assert_eq!(f.to_string().parse::<GnssFormat>(), Ok(f));
+            assert_eq!(f.as_str().to_uppercase().parse::<GnssFormat>(), Ok(f));
+        }
+        let e = "nmea0183".parse::<GnssFormat>().unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "`nmea0183` is not a satellite GPS format (nmea, gpx, nclt or ubx)"
+        );
+        assert!("".parse::<GnssFormat>().is_err());
+    }
 
     #[test]
     fn sniffing_beats_the_extension() {

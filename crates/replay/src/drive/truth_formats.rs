@@ -199,6 +199,46 @@ fn numbers(parts: &[&str], names: &[&str]) -> Result<Vec<f64>, String> {
         .collect()
 }
 
+/// The rows of a headerless table of numbers (`sep`: the field separator, `None` for white
+/// space), blank and `#` lines skipped: `(0-based line index, one value per name)`. A row
+/// with another number of fields than `names`, or a field that is not a finite number, is
+/// refused (`read`, naming file, line and field) and left out.
+fn numeric_rows(
+    path: &Path,
+    text: &str,
+    sep: Option<char>,
+    names: &[&str],
+    format: &str,
+    read: &mut TruthRead,
+) -> Vec<(usize, Vec<f64>)> {
+    let file = path.display();
+    let mut rows = Vec::new();
+    for (k, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let parts: Vec<&str> = match sep {
+            Some(c) => line.split(c).collect(),
+            None => line.split_whitespace().collect(),
+        };
+        if parts.len() != names.len() {
+            read.refuse(format!(
+                "{file}:{}: {} fields, {format} has {}",
+                k + 1,
+                parts.len(),
+                names.len()
+            ));
+            continue;
+        }
+        match numbers(&parts, names) {
+            Ok(v) => rows.push((k, v)),
+            Err(e) => read.refuse(format!("{file}:{}: {e}", k + 1)),
+        }
+    }
+    rows
+}
+
 /// Reads a truth file of any format for `frames`. Rows that are clearly broken are refused
 /// one by one ([`TruthRead::messages`]); the others are used.
 ///
@@ -329,27 +369,7 @@ fn nclt_samples(path: &Path, text: &str, read: &mut TruthRead) -> Vec<Sample> {
     let file = path.display();
     let names = ["utime", "x", "y", "z", "roll", "pitch", "yaw"];
     let mut out = Vec::new();
-    for (k, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let parts: Vec<&str> = line.split(',').collect();
-        if parts.len() != names.len() {
-            read.refuse(format!(
-                "{file}:{}: {} fields, NCLT ground truth has 7",
-                k + 1,
-                parts.len()
-            ));
-            continue;
-        }
-        let v = match numbers(&parts, &names) {
-            Ok(v) => v,
-            Err(e) => {
-                read.refuse(format!("{file}:{}: {e}", k + 1));
-                continue;
-            }
-        };
+    for (k, v) in numeric_rows(path, text, Some(','), &names, "NCLT ground truth", read) {
         let Some(position) = nclt_local_to_geodetic(v[1], v[2], v[3]) else {
             read.refuse(format!(
                 "{file}:{}: field `x`: too far from NCLT's origin",
@@ -387,27 +407,7 @@ fn tum_samples(path: &Path, text: &str, read: &mut TruthRead) -> Result<Vec<Samp
     let local = vgps_geometry::geo::LocalFrame::new(o);
     let names = ["timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"];
     let mut out = Vec::new();
-    for (k, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let parts: Vec<&str> = line.split_whitespace().collect();
-        if parts.len() != names.len() {
-            read.refuse(format!(
-                "{file}:{}: {} fields, TUM has 8",
-                k + 1,
-                parts.len()
-            ));
-            continue;
-        }
-        let v = match numbers(&parts, &names) {
-            Ok(v) => v,
-            Err(e) => {
-                read.refuse(format!("{file}:{}: {e}", k + 1));
-                continue;
-            }
-        };
+    for (k, v) in numeric_rows(path, text, None, &names, "TUM", read) {
         let (q, normalised) = match normalise(Quaternion::new(v[7], v[4], v[5], v[6])) {
             Ok(q) => q,
             Err(e) => {

@@ -239,7 +239,7 @@ fn accept_loop(listener: &TcpListener, shared: &Mutex<Shared>, stop: &AtomicBool
 }
 
 /// How fast a replay feeds its live outputs.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Pace {
     /// At the drive's own time: a frame is sent no earlier than its time after the first
     /// frame's (as a receiver would send it); never waits when localizing is slower.
@@ -247,6 +247,38 @@ pub enum Pace {
     Real,
     /// As fast as frames are localized.
     Fast,
+}
+
+impl Pace {
+    /// Every pace.
+    pub const ALL: [Self; 2] = [Self::Real, Self::Fast];
+
+    /// The pace's name (`real`, `fast`): what [`std::str::FromStr`] reads and
+    /// [`std::fmt::Display`] writes.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Real => "real",
+            Self::Fast => "fast",
+        }
+    }
+}
+
+impl std::fmt::Display for Pace {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl std::str::FromStr for Pace {
+    type Err = String;
+
+    /// `real` or `fast` (any case; surrounding spaces ignored).
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Self::ALL
+            .into_iter()
+            .find(|p| p.as_str().eq_ignore_ascii_case(s.trim()))
+            .ok_or_else(|| format!("`{s}` is not a pace (real or fast)"))
+    }
 }
 
 /// Holds a replay to the drive's time ([`Pace::Real`]) or lets it run ([`Pace::Fast`]).
@@ -284,6 +316,18 @@ impl Pacer {
 mod tests {
     use super::*;
     use std::io::Read as _;
+
+    #[test]
+    fn pace_names_round_trip() {
+        for p in Pace::ALL {
+            assert_eq!(p.to_string().parse::<Pace>(), Ok(p));
+        }
+        assert_eq!(" FAST ".parse::<Pace>(), Ok(Pace::Fast));
+        assert_eq!(
+            "slow".parse::<Pace>(),
+            Err("`slow` is not a pace (real or fast)".to_owned())
+        );
+    }
 
     #[test]
     fn an_address_in_use_is_a_clear_error() {

@@ -284,27 +284,93 @@ fn geojson_round_trip() {
     assert!(!text.contains("NaN") && !text.contains("inf"));
 }
 
+/// The GPX tracks read back with `gpx::read`: per track, per segment, the frames' positions
+/// (to the written 9 decimals of a degree and 1 mm), times (to the ms) and `sat`.
 #[test]
 fn gpx_round_trip() {
-    let recs = known_records();
+    let mut recs = known_records();
+    // Sub-millisecond times round to the millisecond; a time past year 9999 is left out.
+    recs[1].time_s = T0 + 0.500_4;
+    recs[2].time_s = T0 + 0.999_6;
+    recs[9].time_s = 3e11;
+    recs[4].visual.as_mut().unwrap().n_surrogates = 2;
     let text = track_gpx(&drive(), &recs);
     let gpx = gpx::read(text.as_bytes()).unwrap();
     assert_eq!(gpx.version, gpx::GpxVersion::Gpx11);
+    assert_eq!(gpx.creator.as_deref(), Some("vgps"));
+    let meta = gpx.metadata.as_ref().unwrap();
+    assert_eq!(meta.name.as_deref(), Some("test <drive> & co"));
+    let t0: ::time::OffsetDateTime = meta.time.unwrap().into();
+    assert_eq!(t0.unix_timestamp_nanos(), T0 as i128 * 1_000_000_000);
     let names: Vec<_> = gpx.tracks.iter().map(|t| t.name.clone().unwrap()).collect();
     assert_eq!(names, ["visual", "gnss", "truth"]);
     // The satellite track is split by the blackouts into 0–2, 6–7, 9.
-    assert_eq!(gpx.tracks[1].segments.len(), 3);
-    let pts = &gpx.tracks[0].segments[0].points;
-    assert_eq!(pts.len(), 10);
-    for (p, r) in pts.iter().zip(&recs) {
-        let g = r.visual.as_ref().unwrap().geodetic;
-        assert!((p.point().y() - g.lat_deg).abs() < 1e-9);
-        assert!((p.point().x() - g.lon_deg).abs() < 1e-9);
-        assert!((p.elevation.unwrap() - g.alt_m).abs() < 1e-3);
-        assert_eq!(p.sat, Some(5));
+    let runs = |t: usize| -> Vec<usize> {
+        gpx.tracks[t]
+            .segments
+            .iter()
+            .map(|s| s.points.len())
+            .collect()
+    };
+    assert_eq!(
+        (runs(0), runs(1), runs(2)),
+        (vec![10], vec![3, 2, 1], vec![10])
+    );
+    type Get = fn(&FrameRecord) -> Option<Geodetic>;
+    let getters: [Get; 3] = [
+        |r| r.visual.as_ref().map(|v| v.geodetic),
+        |r| r.gnss,
+        |r| r.truth.as_ref().map(|t| t.geodetic),
+    ];
+    for (track, get) in gpx.tracks.iter().zip(getters) {
+        let points = track.segments.iter().flat_map(|s| &s.points);
+        let written: Vec<&FrameRecord> = recs.iter().filter(|r| get(r).is_some()).collect();
+        assert_eq!(points.clone().count(), written.len());
+        for (p, r) in points.zip(written) {
+            let g = get(r).unwrap();
+            assert!((p.point().y() - g.lat_deg).abs() <= 5e-10, "{p:?}");
+            assert!((p.point().x() - g.lon_deg).abs() <= 5e-10, "{p:?}");
+            assert!((p.elevation.unwrap() - g.alt_m).abs() <= 5e-4, "{p:?}");
+            match p.time {
+                Some(t) => {
+                    let ns = ::time::OffsetDateTime::from(t).unix_timestamp_nanos();
+                    assert_eq!(ns, (r.time_s * 1e3).round() as i128 * 1_000_000, "{p:?}");
+                }
+                None => assert_eq!(r.time_s, 3e11, "{p:?}"),
+            }
+            let sat = r
+                .visual
+                .as_ref()
+                .map(|v| (v.n_landmarks + v.n_surrogates) as u64);
+            assert_eq!(
+                p.sat,
+                if track.name.as_deref() == Some("visual") {
+                    sat
+                } else {
+                    None
+                }
+            );
+        }
     }
+    let pts = &gpx.tracks[0].segments[0].points;
+    assert_eq!(pts[4].sat, Some(7));
     let t = pts[1].time.unwrap().format().unwrap();
-    assert!(t.starts_with("2023-11-14T22:13:20.5"), "{t}");
+    assert_eq!(t, "2023-11-14T22:13:20.500000000Z");
+    assert_eq!(
+        pts[2].time.unwrap().format().unwrap(),
+        "2023-11-14T22:13:21.000000000Z"
+    );
+    // Written with at most 9 decimals of a degree and 3 of a metre.
+    for line in text.lines().filter(|l| l.contains("<trkpt")) {
+        for attr in ["lat=\"", "lon=\""] {
+            let v = line.split(attr).nth(1).unwrap().split('"').next().unwrap();
+            assert!(v.split('.').nth(1).is_none_or(|d| d.len() <= 9), "{line}");
+        }
+    }
+    for ele in text.split("<ele>").skip(1) {
+        let v = ele.split('<').next().unwrap();
+        assert!(v.split('.').nth(1).is_none_or(|d| d.len() <= 3), "{v}");
+    }
 }
 
 #[test]

@@ -230,55 +230,107 @@ pub fn track_kml(drive: &DriveInfo, records: &[FrameRecord]) -> String {
     s
 }
 
-/// `track.gpx`: GPX 1.1 (namespace `http://www.topografix.com/GPX/1/1`) with metadata
-/// (name, time of the first frame) and one `trk` per track (`visual`, `gnss`, `truth`), one
-/// `trkseg` per run of consecutive frames, each `trkpt` with `ele` (ellipsoidal height),
-/// `time` (UTC) and, for visual fixes, `sat` (landmarks + surrogates).
-pub fn track_gpx(drive: &DriveInfo, records: &[FrameRecord]) -> String {
-    let mut s = String::new();
-    s.push_str(
-        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n\
-         <gpx version=\"1.1\" creator=\"vgps\" xmlns=\"http://www.topografix.com/GPX/1/1\" \
-         xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\" \
-         xsi:schemaLocation=\"http://www.topografix.com/GPX/1/1 \
-         http://www.topografix.com/GPX/1/1/gpx.xsd\">\n",
-    );
-    let _ = write!(s, "<metadata><name>{}</name>", xml_escape(&drive.name));
-    if let Some(t) = records.first().and_then(|r| utc_iso8601(r.time_s)) {
-        let _ = write!(s, "<time>{t}</time>");
+/// `x` rounded to `decimals` decimals (`-0` becomes `0`), so that the `gpx` writer's
+/// shortest round-trip form of an `f64` prints at most `decimals` decimals; `None` if not
+/// finite.
+fn rounded(x: f64, decimals: usize) -> Option<f64> {
+    let s = 10f64.powi(decimals as i32);
+    finite(x).map(|v| (v * s).round() / s + 0.0)
+}
+
+/// Unix seconds as a GPX time, rounded to the millisecond like every time of the report;
+/// `None` for a time that is not finite or that ISO 8601's four-digit years cannot write.
+fn gpx_time(time_s: f64) -> Option<gpx::Time> {
+    const MAX_ABS_TIME_S: f64 = 1e12;
+    if !time_s.is_finite() || time_s.abs() > MAX_ABS_TIME_S {
+        return None;
     }
-    s.push_str("</metadata>\n");
-    for (name, get, _) in TRACKS {
-        let segs = segments(records, get);
-        if segs.is_empty() {
+    let ms = (time_s * 1e3).round() as i128;
+    let t = gpx::Time::from(time::OffsetDateTime::from_unix_timestamp_nanos(ms * 1_000_000).ok()?);
+    // The writer formats with ISO 8601's four-digit years: leave out what it cannot write.
+    t.format().is_ok().then_some(t)
+}
+
+/// A GPX track point at `g` (lat/lon to 9 decimals, `ele` to the millimetre); `None` when
+/// the position is not finite.
+fn gpx_point(g: &Geodetic, time_s: f64) -> Option<gpx::Waypoint> {
+    let lat = rounded(g.lat_deg, LATLON_DECIMALS)?;
+    let lon = rounded(g.lon_deg, LATLON_DECIMALS)?;
+    let mut p = gpx::Waypoint::new((lon, lat).into());
+    p.elevation = rounded(g.alt_m, METRE_DECIMALS);
+    p.time = gpx_time(time_s);
+    Some(p)
+}
+
+/// The GPX document of [`track_gpx`].
+fn gpx_document(drive: &DriveInfo, records: &[FrameRecord]) -> gpx::Gpx {
+    // XML 1.0 allows no control characters but tab and line breaks.
+    let name: String = drive
+        .name
+        .chars()
+        .map(|c| match c {
+            c if (c as u32) < 0x20 && !matches!(c, '\t' | '\n' | '\r') => ' ',
+            c => c,
+        })
+        .collect();
+    let mut tracks = Vec::new();
+    for (track_name, get, _) in TRACKS {
+        let segments: Vec<gpx::TrackSegment> = segments(records, get)
+            .into_iter()
+            .map(|(a, b)| {
+                let mut seg = gpx::TrackSegment::new();
+                seg.points = records[a..=b]
+                    .iter()
+                    .filter_map(|r| {
+                        let mut p = gpx_point(get(r)?, r.time_s)?;
+                        if track_name == "visual"
+                            && let Some(v) = &r.visual
+                        {
+                            p.sat = u64::try_from(v.n_landmarks + v.n_surrogates).ok();
+                        }
+                        Some(p)
+                    })
+                    .collect();
+                seg
+            })
+            .filter(|seg| !seg.points.is_empty())
+            .collect();
+        if segments.is_empty() {
             continue;
         }
-        let _ = writeln!(s, "<trk><name>{name}</name>");
-        for (a, b) in segs {
-            s.push_str("<trkseg>\n");
-            for r in &records[a..=b] {
-                let Some(g) = get(r) else { continue };
-                let _ = write!(
-                    s,
-                    "<trkpt lat=\"{}\" lon=\"{}\"><ele>{}</ele>",
-                    fmt_opt(Some(g.lat_deg), LATLON_DECIMALS),
-                    fmt_opt(Some(g.lon_deg), LATLON_DECIMALS),
-                    fmt_opt(Some(g.alt_m), METRE_DECIMALS)
-                );
-                if let Some(t) = utc_iso8601(r.time_s) {
-                    let _ = write!(s, "<time>{t}</time>");
-                }
-                if name == "visual"
-                    && let Some(v) = &r.visual
-                {
-                    let _ = write!(s, "<sat>{}</sat>", v.n_landmarks + v.n_surrogates);
-                }
-                s.push_str("</trkpt>\n");
-            }
-            s.push_str("</trkseg>\n");
-        }
-        s.push_str("</trk>\n");
+        let mut track = gpx::Track::new();
+        track.name = Some(track_name.to_owned());
+        track.segments = segments;
+        tracks.push(track);
     }
-    s.push_str("</gpx>\n");
-    s
+    gpx::Gpx {
+        version: gpx::GpxVersion::Gpx11,
+        creator: Some("vgps".to_owned()),
+        metadata: Some(gpx::Metadata {
+            name: Some(name),
+            time: records.first().and_then(|r| gpx_time(r.time_s)),
+            ..gpx::Metadata::default()
+        }),
+        tracks,
+        ..gpx::Gpx::default()
+    }
+}
+
+/// `track.gpx`: GPX 1.1 (namespace `http://www.topografix.com/GPX/1/1`), written by the
+/// [`gpx`] crate, with metadata (name, time of the first frame) and one `trk` per track
+/// (`visual`, `gnss`, `truth`), one `trkseg` per run of consecutive frames, each `trkpt`
+/// with `lat`/`lon` (9 decimals), `ele` (ellipsoidal height, millimetres), `time` (UTC, to
+/// the millisecond) and, for visual fixes, `sat` (landmarks + surrogates).
+pub fn track_gpx(drive: &DriveInfo, records: &[FrameRecord]) -> String {
+    let mut bytes = Vec::new();
+    // The writer fails only on an I/O error (none: it writes to memory), a version other
+    // than 1.0/1.1 or a time it cannot format (`gpx_time` leaves those out).
+    match gpx::write(&gpx_document(drive, records), &mut bytes) {
+        Ok(()) => {
+            let mut s = String::from_utf8(bytes).unwrap_or_default();
+            s.push('\n');
+            s
+        }
+        Err(_) => String::new(),
+    }
 }
