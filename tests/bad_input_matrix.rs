@@ -934,7 +934,12 @@ fn rows() -> Vec<Row> {
             },
             args: &["calib", "show", "{t}/c.json"],
             code: 2,
-            stderr: &["{t}/c.json", "cameras[0].mask", "{t}/m.png", "not a readable PNG"],
+            stderr: &[
+                "{t}/c.json",
+                "cameras[0].mask",
+                "{t}/m.png",
+                "not a readable PNG",
+            ],
         },
         Row {
             name: "calib: truncated JSON",

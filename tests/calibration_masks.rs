@@ -210,8 +210,11 @@ fn masks_survive_convert_to_native_and_back() {
 
     // A mask side file of the wrong size, or missing: the JSON, the field and the PNG.
     let small = GrayImage::from_fn(8, 6, |_, _| image::Luma([0]));
-    std::fs::write(dir.path().join("rig.cam5.mask.png"), encode_png(&small).expect("png"))
-        .expect("write");
+    std::fs::write(
+        dir.path().join("rig.cam5.mask.png"),
+        encode_png(&small).expect("png"),
+    )
+    .expect("write");
     let e = load(&json, None, None).unwrap_err().to_string();
     assert!(
         e.contains("rig.json") && e.contains("cameras[5].mask") && e.contains("8×6"),

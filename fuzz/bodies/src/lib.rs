@@ -20,8 +20,8 @@ use nalgebra::{Matrix3, Vector2, Vector3};
 use std::path::Path;
 use vgps_camera::calibration::formats::{ladybug_conf, ladybug_ini, native, nclt};
 use vgps_camera::calibration::{
-    Camera, CameraMask, CameraModel, Lut, MAX_IMAGE_SIDE_PX, Pinhole, PinholeParams, Rig, TabulatedPinhole,
-    TabulatedPinholeParams,
+    Camera, CameraMask, CameraModel, Lut, MAX_IMAGE_SIDE_PX, Pinhole, PinholeParams, Rig,
+    TabulatedPinhole, TabulatedPinholeParams,
 };
 use vgps_camera::imaging::formats::jpeg_frame_header;
 use vgps_camera::imaging::{DecodeLimits, StreetLampDetector, decode_image, decode_png};
@@ -366,7 +366,10 @@ pub fn camera_mask(data: &[u8]) {
     let params = PinholeParams::ideal(w, h, wf, wf, (wf - 1.0) / 2.0, (hf - 1.0) / 2.0);
     if let Ok(camera) = Pinhole::new(params) {
         let rig = Rig::panorama(Camera::Pinhole(camera));
-        assert!(rig.with_mask(0, mask).is_ok(), "mask of the camera's size refused");
+        assert!(
+            rig.with_mask(0, mask).is_ok(),
+            "mask of the camera's size refused"
+        );
     }
 }
 
