@@ -97,8 +97,13 @@ pub fn resolve(drive: &mut Drive, given: Option<(u32, u32)>) -> Result<Option<St
                     let Some(Some(name)) = frame.images.get(camera) else {
                         continue;
                     };
-                    let Some(size) = header_dimensions(&drive.dir().join(name)) else {
-                        unsized_image.get_or_insert_with(|| name.clone());
+                    let path = drive.dir().join(name);
+                    let Some(size) = header_dimensions(&path) else {
+                        // A missing image is reported per frame later; an existing one
+                        // without a PNG/JPEG header cannot give the size.
+                        if path.is_file() {
+                            unsized_image.get_or_insert_with(|| name.clone());
+                        }
                         continue;
                     };
                     match &found {
