@@ -883,6 +883,65 @@ fn rows() -> Vec<Row> {
             stderr: &["{t}/c.ini: key camera2_transZ", "missing key"],
         },
         Row {
+            name: "calib: Ladybug INI dump (underscore spelling) with a value that is not a number",
+            setup: |t| {
+                let text = fixture_text("calibration/ladybug_64x48.ini")
+                    .replace("camera1_FocalLen = 40", "camera1_FocalLen = forty");
+                write(t, "c.ini", text);
+            },
+            args: &["calib", "show", "{t}/c.ini"],
+            code: 2,
+            stderr: &["{t}/c.ini", "camera1_FocalLen"],
+        },
+        Row {
+            name: "calib: NCLT directory with a K_cam file that is not a matrix",
+            setup: |t| {
+                copy_dir(Path::new(&fixture("calibration/nclt_16x12")), &t.join("n"));
+                write(t, "n/K_cam1.csv", "10,0,7.5\n0,ten,5.5\n0,0,1\n");
+            },
+            args: &["calib", "show", "{t}/n"],
+            code: 2,
+            stderr: &["{t}/n/K_cam1.csv"],
+        },
+        Row {
+            name: "calib: NCLT mask of the wrong size",
+            setup: |t| {
+                copy_dir(Path::new(&fixture("calibration/nclt_16x12")), &t.join("n"));
+                let small = image::GrayImage::from_fn(8, 6, |_, _| image::Luma([0]));
+                let mut png = Vec::new();
+                small
+                    .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+                    .expect("png");
+                write(t, "n/mask_cam2.png", png);
+            },
+            args: &["calib", "show", "{t}/n"],
+            code: 2,
+            stderr: &["{t}/n/mask_cam2.png", "8×6"],
+        },
+        Row {
+            name: "calib: native JSON naming a mask that is not a PNG",
+            setup: |t| {
+                write(
+                    t,
+                    "c.json",
+                    r#"{"format": "vgps-calibration", "version": 1, "cameras": [
+  {"camera": {"model": "equirectangular", "width": 64, "height": 32},
+   "rig_from_camera": {"rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]], "translation": [0, 0, 0]},
+   "mask": "m.png"}]}
+"#,
+                );
+                write(t, "m.png", garbage());
+            },
+            args: &["calib", "show", "{t}/c.json"],
+            code: 2,
+            stderr: &[
+                "{t}/c.json",
+                "cameras[0].mask",
+                "{t}/m.png",
+                "not a readable PNG",
+            ],
+        },
+        Row {
             name: "calib: truncated JSON",
             setup: |t| {
                 let text = std::fs::read_to_string(fixture("calibration/native_mixed.json"))
@@ -1008,6 +1067,30 @@ fn rows() -> Vec<Row> {
                 "{t}/d/truth.csv: not a truth file",
                 "the drive is read without truth",
             ],
+        },
+        Row {
+            name: "replay: UBX log whose only NAV-PVT frame has a wrong checksum (warning, replay goes on)",
+            setup: |t| {
+                drive(t);
+                // Sync, class 0x01 NAV, id 0x07 PVT, length 92, a zero payload, checksum 0.
+                let mut ubx = vec![0xB5, 0x62, 0x01, 0x07, 92, 0];
+                ubx.extend([0u8; 92]);
+                ubx.extend([0, 0]);
+                write(t, "g.ubx", ubx);
+            },
+            args: &[
+                "replay",
+                "{t}/d",
+                "--gnss",
+                "{t}/g.ubx",
+                "--gnss-format",
+                "ubx",
+                "--quiet",
+                "--out",
+                "{t}/r",
+            ],
+            code: 0,
+            stderr: &["{t}/g.ubx: no GNSS fix"],
         },
         Row {
             name: "landmarks import: GeoJSON in a projected CRS (coordinates in metres)",
@@ -1288,6 +1371,28 @@ fn rows() -> Vec<Row> {
                 "frame 0: {t}/d/images/000000_0.jpg: cannot decode JPEG",
                 "(camera 0)",
             ],
+        },
+        Row {
+            name: "detect: truncated BMP",
+            setup: |t| {
+                replace_image(t, "bmp", |g| {
+                    let mut b = Vec::new();
+                    g.write_to(&mut std::io::Cursor::new(&mut b), image::ImageFormat::Bmp)
+                        .expect("bmp");
+                    b[..b.len() / 3].to_vec()
+                })
+            },
+            args: &[
+                "detect",
+                "{t}/d",
+                "--quiet",
+                "--threads",
+                "1",
+                "--out",
+                "{t}/det.csv",
+            ],
+            code: 0,
+            stderr: &["frame 0: {t}/d/images/000000_0.bmp", "(camera 0)"],
         },
         Row {
             name: "detect: CMYK JPEG (four components)",

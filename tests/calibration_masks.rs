@@ -150,3 +150,80 @@ fn the_mask_is_applied_before_detection() {
         (found.detections[0].u - 20.0).abs() < 1e-9 && (found.detections[0].v - 8.0).abs() < 1e-9
     );
 }
+
+/// `vgps calib convert` of an NCLT directory with masks to the native JSON keeps every
+/// mask (a PNG side file per masked camera), the JSON reads back to the same rig, a second
+/// conversion JSON → JSON and a conversion to LUTs keep them too, and a broken mask side
+/// file is an error naming the JSON, the camera's `mask` field and the PNG.
+#[test]
+fn masks_survive_convert_to_native_and_back() {
+    use vgps::calibration::formats::{Format, load};
+    let dir = tempfile::tempdir().expect("tmp");
+    let d = dir.path().join("nclt");
+    copy_dir(&manifest("tests/fixtures/calibration/nclt_16x12"), &d);
+    let mask2 = GrayImage::from_fn(16, 12, |u, v| {
+        image::Luma([if v >= 9 || (u < 2 && v < 3) { 0 } else { 255 }])
+    });
+    let mask5 = GrayImage::from_fn(16, 12, |u, _| image::Luma([if u == 15 { 0 } else { 200 }]));
+    std::fs::write(d.join("mask_cam2.png"), encode_png(&mask2).expect("png")).expect("write");
+    std::fs::write(d.join("mask_cam5.png"), encode_png(&mask5).expect("png")).expect("write");
+    let original = nclt::read(&d).expect("read");
+    assert_eq!(original.mask(2).expect("mask 2").count(), 16 * 3 + 2 * 3);
+    assert_eq!(original.mask(5).expect("mask 5").count(), 12);
+
+    let convert = |input: &Path, to: &str, output: &Path, extra: &[&str]| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_vgps"))
+            .args(["calib", "convert"])
+            .arg(input)
+            .args(["--to", to])
+            .args(extra)
+            .arg(output)
+            .output()
+            .expect("run vgps");
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    let json = dir.path().join("rig.json");
+    convert(&d, "native", &json, &[]);
+    let text = std::fs::read_to_string(&json).expect("json");
+    assert!(text.contains("\"mask\": \"rig.cam2.mask.png\""), "{text}");
+    assert!(text.contains("\"mask\": \"rig.cam5.mask.png\""), "{text}");
+    assert_eq!(text.matches("\"mask\"").count(), 2, "{text}");
+    let back = load(&json, Some(Format::Native), None).expect("native");
+    assert_eq!(back, original);
+    assert!(back.mask(0).is_none());
+
+    // JSON → JSON (into another directory) and JSON → LUTs keep the masks.
+    std::fs::create_dir(dir.path().join("again")).expect("mkdir");
+    let json2 = dir.path().join("again/rig2.json");
+    convert(&json, "native", &json2, &[]);
+    assert_eq!(load(&json2, None, None).expect("native"), original);
+    let lut_json = dir.path().join("lut.json");
+    convert(&json, "lut", &lut_json, &["--step", "4"]);
+    let luts = load(&lut_json, None, None).expect("lut rig");
+    for i in 0..6 {
+        assert_eq!(luts.mask(i), original.mask(i), "camera {i}");
+    }
+
+    // A mask side file of the wrong size, or missing: the JSON, the field and the PNG.
+    let small = GrayImage::from_fn(8, 6, |_, _| image::Luma([0]));
+    std::fs::write(
+        dir.path().join("rig.cam5.mask.png"),
+        encode_png(&small).expect("png"),
+    )
+    .expect("write");
+    let e = load(&json, None, None).unwrap_err().to_string();
+    assert!(
+        e.contains("rig.json") && e.contains("cameras[5].mask") && e.contains("8×6"),
+        "{e}"
+    );
+    std::fs::remove_file(dir.path().join("rig.cam2.mask.png")).expect("rm");
+    let e = load(&json, None, None).unwrap_err().to_string();
+    assert!(
+        e.contains("cameras[2].mask") && e.contains("rig.cam2.mask.png"),
+        "{e}"
+    );
+}

@@ -74,3 +74,73 @@ fn detect_takes_the_image_size_from_the_images_or_the_option() {
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(stderr.contains("using 10×10 (--image-size)"), "{stderr}");
 }
+
+/// `vgps replay --from-images` with a rig from an INI dump (no image size): with images
+/// whose headers give no size (BMP), it refuses with a message asking for `--image-size`;
+/// with `--image-size W,H` it replays the images (none refused for their size).
+#[test]
+fn replay_from_images_takes_the_image_size_option() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let drive = drive_with_unsized_ini(dir.path());
+    // The same pixels as BMP (content-sniffed, so the file names stay): no PNG/JPEG header.
+    let mut size = None;
+    let mut converted = 0;
+    let mut dirs = vec![drive.clone()];
+    let mut files = Vec::new();
+    while let Some(d) = dirs.pop() {
+        for e in std::fs::read_dir(&d).expect("drive") {
+            let p = e.expect("entry").path();
+            if p.is_dir() {
+                dirs.push(p);
+            } else {
+                files.push(p);
+            }
+        }
+    }
+    for p in files {
+        if p.extension().is_some_and(|x| x == "png") {
+            let img = image::open(&p).expect("png").into_luma8();
+            size = Some(img.dimensions());
+            img.save_with_format(&p, image::ImageFormat::Bmp)
+                .expect("bmp");
+            converted += 1;
+        }
+    }
+    let (w, h) = size.expect("the drive has images");
+    assert!(converted >= 6, "{converted} images");
+    let d = drive.to_string_lossy().into_owned();
+    let o = vgps(
+        &["replay", &d, "--from-images", "--quiet", "--out", "r1"],
+        dir.path(),
+    );
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("names no image size") && stderr.contains("give --image-size WxH"),
+        "{stderr}"
+    );
+    assert!(!dir.path().join("r1/fixes.csv").exists());
+    let size_arg = format!("{w},{h}");
+    let o = vgps(
+        &[
+            "replay",
+            &d,
+            "--from-images",
+            "--quiet",
+            "--image-size",
+            &size_arg,
+            "--out",
+            "r2",
+        ],
+        dir.path(),
+    );
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    assert!(
+        stderr.contains(&format!("using {w}×{h} (--image-size)")),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("exceeds the limits"), "{stderr}");
+    assert!(!stderr.contains("wrong_size"), "{stderr}");
+    assert!(dir.path().join("r2/fixes.csv").is_file());
+}

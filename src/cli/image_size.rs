@@ -8,13 +8,13 @@ use std::path::Path;
 use vgps_camera::calibration::CameraModel;
 use vgps_replay::drive::Drive;
 
-/// Parses `WxH` (e.g. `2048x2448`).
+/// Parses `WxH` or `W,H` (e.g. `2048x2448`).
 ///
 /// # Errors
 /// The reason, for clap.
 pub fn parse_image_size(s: &str) -> Result<(u32, u32), String> {
     let (w, h) = s
-        .split_once(['x', 'X'])
+        .split_once(['x', 'X', ','])
         .ok_or_else(|| format!("`{s}` is not WxH"))?;
     let w: u32 = w
         .trim()
@@ -43,13 +43,34 @@ pub fn png_dimensions(path: &Path) -> Option<(u32, u32)> {
     Some((w, h))
 }
 
-/// Gives the drive's unbounded cameras an image size: `given`, else the size every PNG of
-/// those cameras has (unreadable images are skipped: they are reported per frame later).
+/// `(width, height)` from an image file's header: a PNG's IHDR chunk (24 bytes) or a JPEG's
+/// start-of-frame segment (within the first 256 KiB); `None` otherwise.
+pub fn header_dimensions(path: &Path) -> Option<(u32, u32)> {
+    if let Some(size) = png_dimensions(path) {
+        return Some(size);
+    }
+    let mut head = Vec::new();
+    std::fs::File::open(path)
+        .ok()?
+        .take(256 * 1024)
+        .read_to_end(&mut head)
+        .ok()?;
+    if !head.starts_with(&[0xFF, 0xD8]) {
+        return None;
+    }
+    let h = vgps_camera::imaging::formats::jpeg_frame_header(&head)?;
+    Some((u32::from(h.width), u32::from(h.height)))
+}
+
+/// Gives the drive's unbounded cameras an image size: `given`, else the size every PNG or
+/// JPEG header of those cameras' images gives (unreadable images are skipped: they are
+/// reported per frame later).
 /// Returns a note for stderr when a size was applied.
 ///
 /// # Errors
-/// [`CliError::Calibration`] when images of those cameras disagree, or when the
-/// calibration cannot take the size.
+/// [`CliError::Calibration`] when images of those cameras disagree, when those cameras have
+/// images but none of their headers gives a size (then `--image-size` is needed), or when
+/// the calibration cannot take the size.
 pub fn resolve(drive: &mut Drive, given: Option<(u32, u32)>) -> Result<Option<String>, CliError> {
     let unbounded: Vec<usize> = (0..drive.rig().len())
         .filter(|&i| drive.rig().cameras()[i].model.image_size() == (0, 0))
@@ -70,12 +91,19 @@ pub fn resolve(drive: &mut Drive, given: Option<(u32, u32)>) -> Result<Option<St
         Some(s) => s,
         None => {
             let mut found: Option<((u32, u32), String)> = None;
+            let mut unsized_image: Option<String> = None;
             for frame in drive.frames() {
                 for &camera in &unbounded {
                     let Some(Some(name)) = frame.images.get(camera) else {
                         continue;
                     };
-                    let Some(size) = png_dimensions(&drive.dir().join(name)) else {
+                    let path = drive.dir().join(name);
+                    let Some(size) = header_dimensions(&path) else {
+                        // A missing image is reported per frame later; an existing one
+                        // without a PNG/JPEG header cannot give the size.
+                        if path.is_file() {
+                            unsized_image.get_or_insert_with(|| name.clone());
+                        }
                         continue;
                     };
                     match &found {
@@ -91,9 +119,17 @@ pub fn resolve(drive: &mut Drive, given: Option<(u32, u32)>) -> Result<Option<St
                     }
                 }
             }
-            match found {
-                Some((s, _)) => s,
-                None => return Ok(None),
+            match (found, unsized_image) {
+                (Some((s, _)), _) => s,
+                (None, Some(name)) => {
+                    return Err(CliError::Calibration(format!(
+                        "the calibration names no image size for camera(s) {unbounded:?} and \
+                         no image of theirs gives one in a PNG or JPEG header (e.g. {}): \
+                         give --image-size WxH",
+                        drive.dir().join(name).display()
+                    )));
+                }
+                (None, None) => return Ok(None),
             }
         }
     };

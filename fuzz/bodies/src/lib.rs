@@ -20,7 +20,8 @@ use nalgebra::{Matrix3, Vector2, Vector3};
 use std::path::Path;
 use vgps_camera::calibration::formats::{ladybug_conf, ladybug_ini, native, nclt};
 use vgps_camera::calibration::{
-    Camera, CameraModel, Lut, Rig, TabulatedPinhole, TabulatedPinholeParams,
+    Camera, CameraMask, CameraModel, Lut, MAX_IMAGE_SIDE_PX, Pinhole, PinholeParams, Rig,
+    TabulatedPinhole, TabulatedPinholeParams,
 };
 use vgps_camera::imaging::formats::jpeg_frame_header;
 use vgps_camera::imaging::{DecodeLimits, StreetLampDetector, decode_image, decode_png};
@@ -344,6 +345,31 @@ pub fn nclt_table(data: &[u8]) {
     };
     if let Ok(model) = TabulatedPinhole::new(params) {
         check_camera(&Camera::TabulatedPinhole(model));
+    }
+}
+
+/// Target `camera_mask`: a PNG mask ([`CameraMask::from_png_bytes`]); an `Ok` mask has a
+/// size within the limits, no more masked pixels than pixels, answers look-ups anywhere
+/// (inside, outside, non-finite), and is accepted by a rig whose camera has its size.
+pub fn camera_mask(data: &[u8]) {
+    let Ok(mask) = CameraMask::from_png_bytes(data, Path::new(FUZZ_PATH)) else {
+        return;
+    };
+    let (w, h) = mask.dimensions();
+    assert!(w >= 1 && h >= 1 && w <= MAX_IMAGE_SIDE_PX && h <= MAX_IMAGE_SIDE_PX);
+    assert!(mask.count() <= u64::from(w) * u64::from(h));
+    for (u, v) in [(0.0, 0.0), (-0.6, 0.0), (f64::NAN, 1.0), (1e300, 0.0)] {
+        let _ = mask.is_masked_at(&Vector2::new(u, v));
+    }
+    assert!(!mask.is_masked(w, 0) && !mask.is_masked(0, h));
+    let (wf, hf) = (f64::from(w), f64::from(h));
+    let params = PinholeParams::ideal(w, h, wf, wf, (wf - 1.0) / 2.0, (hf - 1.0) / 2.0);
+    if let Ok(camera) = Pinhole::new(params) {
+        let rig = Rig::panorama(Camera::Pinhole(camera));
+        assert!(
+            rig.with_mask(0, mask).is_ok(),
+            "mask of the camera's size refused"
+        );
     }
 }
 
@@ -864,6 +890,7 @@ pub const TARGETS: &[Target] = &[
     ("nclt_calibration", nclt_calibration),
     ("nclt_table", nclt_table),
     ("lut", lut),
+    ("camera_mask", camera_mask),
     ("landmarks_csv", landmarks_csv),
     ("observations_csv", observations_csv),
     ("rays_csv", rays_csv),

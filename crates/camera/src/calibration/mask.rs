@@ -2,6 +2,7 @@
 //! border of a lens or of an undistorted image), part of a rig's calibration.
 
 use super::{CalibrationError, MAX_IMAGE_SIDE_PX, Pixel};
+use image::ImageEncoder;
 use std::path::Path;
 
 /// One bit per pixel of a `width × height` image: set = the pixel never sees the world.
@@ -45,14 +46,27 @@ impl CameraMask {
     /// world; any other value does (the convention of the NCLT masks of ethz-asl/nclt_tools).
     ///
     /// # Errors
-    /// [`CalibrationError::LutFile`]-style file errors naming the file: unreadable, not a
-    /// PNG, or a size over [`MAX_IMAGE_SIDE_PX`].
+    /// [`CalibrationError::InvalidParameters`] naming the file: unreadable, not a PNG, or a
+    /// size over [`MAX_IMAGE_SIDE_PX`].
     pub fn read_png(path: &Path) -> Result<Self, CalibrationError> {
+        let bytes = std::fs::read(path).map_err(|e| CalibrationError::InvalidParameters {
+            model: "mask",
+            reason: format!("{}: {e}", path.display()),
+        })?;
+        Self::from_png_bytes(&bytes, path)
+    }
+
+    /// A mask from the bytes of a PNG file (the convention of [`CameraMask::read_png`]);
+    /// `path` only names the source in errors.
+    ///
+    /// # Errors
+    /// [`CalibrationError::InvalidParameters`] naming `path`: not a PNG, or a size over
+    /// [`MAX_IMAGE_SIDE_PX`].
+    pub fn from_png_bytes(bytes: &[u8], path: &Path) -> Result<Self, CalibrationError> {
         let err = |reason: String| CalibrationError::InvalidParameters {
             model: "mask",
             reason: format!("{}: {reason}", path.display()),
         };
-        let bytes = std::fs::read(path).map_err(|e| err(e.to_string()))?;
         let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes));
         reader.set_format(image::ImageFormat::Png);
         let mut limits = image::Limits::default();
@@ -68,6 +82,23 @@ impl CameraMask {
             img.get_pixel(u, v)[0] == 0
         })
         .map_err(|e| err(e.to_string()))
+    }
+
+    /// The mask as the bytes of an 8-bit grey PNG: masked pixels black (0), the others
+    /// white (255), so that [`CameraMask::from_png_bytes`] reads it back equal.
+    pub fn to_png_bytes(&self) -> Vec<u8> {
+        let img = image::GrayImage::from_fn(self.width, self.height, |u, v| {
+            image::Luma([if self.is_masked(u, v) { 0 } else { 255 }])
+        });
+        let mut out = Vec::new();
+        // Encoding an in-memory grey image of a valid size into a Vec cannot fail.
+        let _ = image::codecs::png::PngEncoder::new(&mut out).write_image(
+            img.as_raw(),
+            self.width,
+            self.height,
+            image::ExtendedColorType::L8,
+        );
+        out
     }
 
     /// `(width, height)` in pixels.

@@ -201,7 +201,7 @@ pub fn save_native(rig: &Rig, path: &Path) -> Result<(), LoadError> {
 }
 
 /// The rig with every camera replaced by a [`Lut`] of grid step `step` pixels sampled from
-/// it (same placements).
+/// it (same placements and masks).
 ///
 /// # Errors
 /// [`LoadError::Invalid`] naming `path` (the calibration it comes from) and the camera when
@@ -216,7 +216,17 @@ pub fn to_lut_rig(rig: &Rig, step: u32, path: &Path) -> Result<Rig, LoadError> {
             rig_from_camera: c.rig_from_camera,
         });
     }
-    Rig::new(cameras).map_err(|e| LoadError::invalid(path, "rig", e.to_string()))
+    let mut lut_rig =
+        Rig::new(cameras).map_err(|e| LoadError::invalid(path, "rig", e.to_string()))?;
+    // A LUT has its source's image size: the masks carry over.
+    for i in 0..rig.len() {
+        if let Some(mask) = rig.mask(i) {
+            lut_rig = lut_rig
+                .with_mask(i, mask.clone())
+                .map_err(|e| LoadError::invalid(path, format!("camera {i}"), e.to_string()))?;
+        }
+    }
+    Ok(lut_rig)
 }
 
 /// Writes `bytes` to `path` atomically: a temporary file in the same directory, then a

@@ -25,6 +25,8 @@
 //!   [`TabulatedPinholeParams`] with the two tables given as file names
 //!   `raw_to_undistorted` / `undistorted_to_raw` in the NCLT text layout of
 //!   [`nclt`]). Side-file paths are relative to the JSON file's directory.
+//! - `mask` (optional, per camera): a PNG side file of the camera's image size whose black
+//!   pixels never see the world (a [`CameraMask`](crate::calibration::CameraMask)).
 //! - Unknown fields are errors. Numbers are written in the shortest form that reads back
 //!   to the same `f64`, so write → read is exact.
 
@@ -64,6 +66,10 @@ pub struct NativeCamera {
     pub camera: NativeModel,
     /// The camera's placement in the rig frame.
     pub rig_from_camera: NativePlacement,
+    /// The camera's mask (pixels that never see the world): a PNG side file of the image's
+    /// size, black = masked, relative to the JSON's directory; absent = no mask.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mask: Option<String>,
 }
 
 /// `rig_from_camera`: `point_in_rig = rotation · point_in_camera + translation`.
@@ -184,7 +190,19 @@ pub fn parse(text: &str, path: &Path) -> Result<Rig, LoadError> {
             rig_from_camera,
         });
     }
-    Rig::new(cameras).map_err(|e| LoadError::invalid(path, "cameras", e.to_string()))
+    let mut rig =
+        Rig::new(cameras).map_err(|e| LoadError::invalid(path, "cameras", e.to_string()))?;
+    for (i, c) in file.cameras.iter().enumerate() {
+        if let Some(name) = &c.mask {
+            let field = format!("cameras[{i}].mask");
+            let mask = crate::calibration::CameraMask::read_png(&dir.join(name))
+                .map_err(|e| LoadError::invalid(path, &field, e.to_string()))?;
+            rig = rig
+                .with_mask(i, mask)
+                .map_err(|e| LoadError::invalid(path, &field, e.to_string()))?;
+        }
+    }
+    Ok(rig)
 }
 
 /// The line of a serde error. serde reports an unknown model or field of a tagged camera at
@@ -344,6 +362,11 @@ pub fn to_native(rig: &Rig, stem: &str) -> (NativeFile, Vec<(String, Vec<u8>)>) 
                     NativeModel::SplinePinhole(Box::new(m.params().clone()))
                 }
             };
+            let mask = rig.mask(i).map(|mask| {
+                let file = format!("{stem}.cam{i}.mask.png");
+                side.push((file.clone(), mask.to_png_bytes()));
+                file
+            });
             let m = c.rig_from_camera.rotation.matrix();
             let t = c.rig_from_camera.translation.vector;
             NativeCamera {
@@ -357,6 +380,7 @@ pub fn to_native(rig: &Rig, stem: &str) -> (NativeFile, Vec<(String, Vec<u8>)>) 
                     ],
                     translation: [t.x + 0.0, t.y + 0.0, t.z + 0.0],
                 },
+                mask,
             }
         })
         .collect();
