@@ -217,8 +217,9 @@ pub fn run(
         landmarks: drive.landmarks().to_vec(),
         used,
     };
-    let (report, _files) = vgps_replay::report::write_outputs_with(out_dir, &info, &records, &extras)
-        .map_err(|e| CliError::Output(std::io::Error::other(e.to_string())))?;
+    let (report, _files) =
+        vgps_replay::report::write_outputs_with(out_dir, &info, &records, &extras)
+            .map_err(|e| CliError::Output(std::io::Error::other(e.to_string())))?;
     super::robot_out::write_mcap(&settings.robot, &info, &records)?;
     write_summary(&report, settings, out_dir, out)
 }

@@ -96,12 +96,7 @@ fn drive() -> (DriveInfo, Vec<FrameRecord>, MapExtras) {
                     sigma_e_m: sigma,
                     sigma_n_m: 1.5 * sigma,
                     sigma_u_m: 2.0 * sigma,
-                    horizontal_covariance_m2: Matrix2::new(
-                        cov[(0, 0)],
-                        0.0,
-                        0.0,
-                        cov[(1, 1)],
-                    ),
+                    horizontal_covariance_m2: Matrix2::new(cov[(0, 0)], 0.0, 0.0, cov[(1, 1)]),
                     pose_covariance: cov,
                     n_landmarks: 3 + (k % 3) as usize,
                     n_surrogates: (k % 2) as usize,
@@ -212,7 +207,11 @@ fn the_report_loads_draws_its_map_and_shows_a_clicked_frame_in_chromium() {
         browser_time.as_secs_f64()
     );
     assert_eq!(got["errors"], serde_json::json!([]), "script errors");
-    assert_eq!(got["resources"], serde_json::json!([]), "requests left the page");
+    assert_eq!(
+        got["resources"],
+        serde_json::json!([]),
+        "requests left the page"
+    );
     assert_eq!(got["frames"], FRAMES);
     assert!(got["ink_whole_drive"].as_u64().unwrap() > 10_000, "{got}");
     // The first fix is frame 0; the click on it shows frame 0 with its status and σ.

@@ -125,8 +125,11 @@ fn map_data(drive: &DriveInfo, records: &[FrameRecord], extras: &MapExtras) -> S
         }
         jstr(&mut s, st);
     }
-    let status_index: HashMap<&str, usize> =
-        statuses.iter().enumerate().map(|(k, st)| (*st, k)).collect();
+    let status_index: HashMap<&str, usize> = statuses
+        .iter()
+        .enumerate()
+        .map(|(k, st)| (*st, k))
+        .collect();
     let landmark_index: HashMap<&str, usize> = extras
         .landmarks
         .iter()

@@ -58,7 +58,14 @@ pub(crate) fn error_vs_time_svg(
         ),
         (
             visual_name,
-            |g, t| if t { g.visual_vs_truth } else { g.visual_vs_gnss }.map(|d| d.h),
+            |g, t| {
+                if t {
+                    g.visual_vs_truth
+                } else {
+                    g.visual_vs_gnss
+                }
+                .map(|d| d.h)
+            },
             VISUAL_RGB,
             1,
         ),
@@ -250,7 +257,12 @@ pub(crate) fn error_cdf_svg(geom: &[FrameGeom]) -> Result<String, ReportError> {
         let grey = RGBColor(150, 150, 150);
         for q in [0.5, 0.95] {
             chart
-                .draw_series(DashedLineSeries::new(vec![(x0, q), (x1, q)], 4, 3, grey.into()))
+                .draw_series(DashedLineSeries::new(
+                    vec![(x0, q), (x1, q)],
+                    4,
+                    3,
+                    grey.into(),
+                ))
                 .map_err(|x| e(x.to_string()))?;
         }
         for (name, colour, width, dashed, v) in curves {

@@ -582,7 +582,8 @@ fn html_without_truth_has_no_truth_rows_legend_or_heading_and_keeps_the_headline
     let mut recs = known_records();
     let with_truth = report_html(&drive(), &recs, &Report::compute(&drive(), &recs));
     // With truth: the headline row first, and the truth layer's checkbox.
-    let table = &with_truth[with_truth.find("<table>").unwrap()..with_truth.find("</table>").unwrap()];
+    let table =
+        &with_truth[with_truth.find("<table>").unwrap()..with_truth.find("</table>").unwrap()];
     let rows: Vec<&str> = table.split("<tr").skip(2).collect();
     assert!(
         rows[0].starts_with(" class=\"headline\"><td>visual vs truth, \u{2265} 3 surveyed</td>"),

@@ -201,10 +201,7 @@ mod tests {
     #[test]
     fn stamps_split_seconds_and_nanoseconds() {
         // Exactly representable: exact nanoseconds.
-        assert_eq!(
-            stamp(1_778_794_200.25),
-            Some((1_778_794_200, 250_000_000))
-        );
+        assert_eq!(stamp(1_778_794_200.25), Some((1_778_794_200, 250_000_000)));
         // 1_778_794_200.066_667 is stored as the nearest f64 (spacing 2⁻²² s ≈ 238 ns at
         // this magnitude): the stamp is that value to the nanosecond, 1_778_794_200 s and
         // 66_667_080 ns, within half the spacing of the decimal time.
