@@ -8,11 +8,17 @@
 //!   one `PoseWithCovarianceStamped` and one `Imu` per fix, covariances equal to
 //!   `fixes.csv`'s σ.
 //!
-//! Without gpsd or the Python reader a test prints why it is skipped and passes. The tests
-//! are ignored until they run on a drive with fixes (issue #28 is partial), so `.ci/run`
-//! does not install gpsd or the reader yet; run them with
-//! `cargo test --release --test robot_outputs -- --ignored` after
-//! `apt-get install gpsd gpsd-clients` and `pip install -r tests/python/requirements.txt`.
+//! The drive is the first 50 frames (3.3 s, 32 fixes) of the 120 m reference drive: its
+//! fixes come early, and its later frames (no fix) would take most of a minute to replay.
+//!
+//! gpsd finds the end of an epoch from the sentences' times and the quiet gaps between
+//! them; sentences sent faster than it reads them make it merge epochs and report fewer
+//! fixes (by hand: 24 of 48 through gpsfake). So every fix gpsd reports must be a fix of
+//! `fixes.csv`, within 1 mm and σ within 5 %, while only a share of the fixes must come
+//! through ([`MIN_SHARE_REPORTED`]).
+//!
+//! Without gpsd or the Python reader a test prints why it is skipped and passes; `.ci/run`
+//! installs `gpsd`, `gpsd-clients` and `tests/python/requirements.txt` when missing.
 
 mod common;
 
@@ -28,6 +34,11 @@ use std::time::{Duration, Instant};
 const POSITION_TOLERANCE_M: f64 = 1e-3;
 /// Relative tolerance of a σ reported by gpsd.
 const SIGMA_TOLERANCE: f64 = 0.05;
+/// The share of `fixes.csv`'s fixes that gpsd must report as 3-D fixes with σ (it merges
+/// epochs that come in too fast; see the module docs).
+const MIN_SHARE_REPORTED: f64 = 0.4;
+/// The frames of the reference drive kept for these tests.
+const FRAMES_KEPT: u64 = 50;
 /// WGS84 equatorial radius (metres), for metre differences of nearby positions.
 const EARTH_RADIUS_M: f64 = 6_378_137.0;
 
@@ -58,14 +69,38 @@ fn replayed() -> &'static Replayed {
         let o = vgps(&[
             "simulate",
             "--preset",
-            "short",
+            "reference",
             "--length-m",
-            "80",
+            "120",
             "--quiet",
             "--out",
             drive.to_str().unwrap(),
         ]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        // Keep the first frames: the per-frame tables lose the rows of later frames.
+        for table in [
+            "frames.csv",
+            "detections.csv",
+            "truth.csv",
+            "detections_truth.csv",
+        ] {
+            let path = drive.join(table);
+            let text = std::fs::read_to_string(&path).unwrap();
+            let kept: String = text
+                .lines()
+                .enumerate()
+                .filter(|(k, line)| {
+                    *k == 0
+                        || line
+                            .split(',')
+                            .next()
+                            .and_then(|f| f.parse::<u64>().ok())
+                            .is_some_and(|f| f < FRAMES_KEPT)
+                })
+                .map(|(_, line)| format!("{line}\n"))
+                .collect();
+            std::fs::write(&path, kept).unwrap();
+        }
         let mcap = out.join("fixes.mcap");
         let o = vgps(&[
             "replay",
@@ -78,7 +113,7 @@ fn replayed() -> &'static Replayed {
         ]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let fixes = read_fixes_csv(&out.join("fixes.csv"));
-        assert!(fixes.len() > 50, "{} fixes", fixes.len());
+        assert!(fixes.len() >= 25, "{} fixes", fixes.len());
         Replayed {
             _dir: dir,
             drive,
@@ -212,10 +247,13 @@ fn time_of_day(iso: &str) -> f64 {
 /// Only one gpsd at a time: gpsd instances share a System V memory segment.
 static GPSD: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
-/// Checks gpsd's TPV reports against `fixes.csv`; returns (3-D fixes matched, of them with
-/// σ, worst position error m, worst relative σ error).
+/// Checks gpsd's TPV reports against `fixes.csv`; returns (fixes of `fixes.csv` reported as
+/// 3-D fixes, of them with σ, worst position error m, worst relative σ error). gpsd may
+/// report one epoch twice (at its GGA and at its end): a fix counts once.
 fn check_tpv(reports: &[serde_json::Value], fixes: &[CsvFix]) -> (usize, usize, f64, f64) {
-    let (mut matched, mut with_sigma, mut worst_m, mut worst_sigma) = (0, 0, 0.0f64, 0.0f64);
+    let (mut worst_m, mut worst_sigma) = (0.0f64, 0.0f64);
+    let mut matched = std::collections::BTreeSet::new();
+    let mut with_sigma = std::collections::BTreeSet::new();
     for r in reports
         .iter()
         .filter(|r| r["class"] == "TPV" && r["mode"] == 3)
@@ -223,9 +261,10 @@ fn check_tpv(reports: &[serde_json::Value], fixes: &[CsvFix]) -> (usize, usize, 
         let Some(t) = r["time"].as_str().map(time_of_day) else {
             continue;
         };
-        let f = fixes
+        let (k, f) = fixes
             .iter()
-            .find(|f| (f.time_s.rem_euclid(86_400.0) - t).abs() < 0.006)
+            .enumerate()
+            .find(|(_, f)| (f.time_s.rem_euclid(86_400.0) - t).abs() < 0.006)
             .unwrap_or_else(|| panic!("gpsd reports a fix at {t} that fixes.csv has not: {r}"));
         let lat = r["lat"].as_f64().unwrap();
         let lon = r["lon"].as_f64().unwrap();
@@ -235,7 +274,7 @@ fn check_tpv(reports: &[serde_json::Value], fixes: &[CsvFix]) -> (usize, usize, 
         let error = (dn * dn + de * de + (alt - f.alt).powi(2)).sqrt();
         assert!(error <= POSITION_TOLERANCE_M, "{error} m at {t}: {r}");
         worst_m = worst_m.max(error);
-        matched += 1;
+        matched.insert(k);
         if let (Some(epx), Some(epy), Some(epv)) =
             (r["epx"].as_f64(), r["epy"].as_f64(), r["epv"].as_f64())
         {
@@ -244,14 +283,13 @@ fn check_tpv(reports: &[serde_json::Value], fixes: &[CsvFix]) -> (usize, usize, 
                 assert!(relative <= SIGMA_TOLERANCE, "σ {got} vs {want} at {t}: {r}");
                 worst_sigma = worst_sigma.max(relative);
             }
-            with_sigma += 1;
+            with_sigma.insert(k);
         }
     }
-    (matched, with_sigma, worst_m, worst_sigma)
+    (matched.len(), with_sigma.len(), worst_m, worst_sigma)
 }
 
 #[test]
-#[ignore = "partial (#28): the 80 m short drive has no fix; needs a drive with fixes and gpsd's merged epochs allowed for"]
 fn gpsd_reads_fixes_nmea_through_gpsfake() {
     if !have("gpsd", "gpsfake test")
         || !have("gpsfake", "gpsfake test")
@@ -264,11 +302,11 @@ fn gpsd_reads_fixes_nmea_through_gpsfake() {
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
     let port = free_port();
-    // gpsfake waits for the first client before feeding; 5 ms between sentences keeps
-    // gpsd's epochs apart (fed at once, gpsd merges them).
+    // gpsfake waits for the first client before feeding; 10 ms between sentences keeps
+    // most of gpsd's epochs apart (fed at once, gpsd merges them): about 2 s for the drive.
     let _fake = Guard(
         Command::new("gpsfake")
-            .args(["-1", "-q", "-c", "0.005", "-P", &port.to_string()])
+            .args(["-1", "-q", "-c", "0.01", "-P", &port.to_string()])
             .arg(r.out.join("fixes.nmea"))
             .stdout(Stdio::null())
             .stderr(Stdio::null())
@@ -283,20 +321,17 @@ fn gpsd_reads_fixes_nmea_through_gpsfake() {
         worst_m * 1e3,
         worst_sigma * 100.0
     );
-    assert!(
-        matched + 2 >= r.fixes.len(),
-        "{matched} of {}",
-        r.fixes.len()
-    );
-    assert!(
-        with_sigma + 3 >= r.fixes.len(),
-        "{with_sigma} of {}",
-        r.fixes.len()
-    );
+    assert_reported_enough(matched, with_sigma, r.fixes.len());
+}
+
+/// At least [`MIN_SHARE_REPORTED`] of the fixes reported as 3-D fixes, and with σ.
+fn assert_reported_enough(matched: usize, with_sigma: usize, fixes: usize) {
+    let least = (MIN_SHARE_REPORTED * fixes as f64).ceil() as usize;
+    assert!(matched >= least, "{matched} 3-D fixes of {fixes}");
+    assert!(with_sigma >= least, "{with_sigma} with σ of {fixes}");
 }
 
 #[test]
-#[ignore = "partial (#28): the 80 m short drive has no fix; needs a drive with fixes and gpsd's merged epochs allowed for"]
 fn gpsd_reads_the_live_stream() {
     if !have("gpsd", "live gpsd test") || !have("gpspipe", "live gpsd test") {
         return;
@@ -369,20 +404,10 @@ fn gpsd_reads_the_live_stream() {
         worst_sigma * 100.0
     );
     // gpsd connects while the stream runs: the first fixes may go by before it does.
-    assert!(
-        matched * 10 >= r.fixes.len() * 8,
-        "{matched} of {}",
-        r.fixes.len()
-    );
-    assert!(
-        with_sigma * 10 >= r.fixes.len() * 8,
-        "{with_sigma} of {}",
-        r.fixes.len()
-    );
+    assert_reported_enough(matched, with_sigma, r.fixes.len());
 }
 
 #[test]
-#[ignore = "partial (#28): the 80 m short drive has no fix; needs a drive with fixes and gpsd's merged epochs allowed for"]
 fn an_address_in_use_leaves_the_replay_and_its_files() {
     let r = replayed();
     let taken = TcpListener::bind("127.0.0.1:0").unwrap();
@@ -438,7 +463,6 @@ fn an_address_in_use_leaves_the_replay_and_its_files() {
 }
 
 #[test]
-#[ignore = "partial (#28): the 80 m short drive has no fix; needs a drive with fixes and gpsd's merged epochs allowed for"]
 fn the_mcap_file_reads_back_with_mcap_ros2_support() {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/read_mcap_ros2.py");
     let probe = Command::new("python3")

@@ -185,6 +185,7 @@ pub fn run(
     let mut records = Vec::with_capacity(frames.len());
     let detector = ImageDetector::new(settings.detector, drive.rig());
     let mut live = super::robot_out::LiveStream::start(&settings.robot, err);
+    let mut used = std::collections::BTreeMap::new();
     for batch in frames.chunks(BATCH_FRAMES) {
         let detections: Vec<FrameDetections> = if from_images {
             detect_batch(&drive, batch, settings.threads, &detector)
@@ -198,6 +199,7 @@ pub fn run(
                 localizer: &mut localizer,
                 gnss_prior: settings.gnss_prior,
                 imu: settings.imu,
+                used: &mut used,
             };
             let record = step.record(f, d, err);
             live.send(&record, err);
@@ -215,8 +217,13 @@ pub fn run(
         origin: map.frame().origin(),
     };
     live.finish(err);
-    let (report, _files) = vgps_replay::report::write_outputs(out_dir, &info, &records)
-        .map_err(|e| CliError::Output(std::io::Error::other(e.to_string())))?;
+    let extras = vgps_replay::report::MapExtras {
+        landmarks: drive.landmarks().to_vec(),
+        used,
+    };
+    let (report, _files) =
+        vgps_replay::report::write_outputs_with(out_dir, &info, &records, &extras)
+            .map_err(|e| CliError::Output(std::io::Error::other(e.to_string())))?;
     super::robot_out::write_mcap(&settings.robot, &info, &records)?;
     write_summary(&report, settings, out_dir, out)
 }
@@ -264,6 +271,8 @@ struct FrameStep<'d, 'l> {
     localizer: &'l mut Localizer,
     gnss_prior: bool,
     imu: bool,
+    /// Frame → ids of the surveyed landmarks its fix used (for the report's map).
+    used: &'l mut std::collections::BTreeMap<u64, Vec<String>>,
 }
 
 impl FrameStep<'_, '_> {
@@ -311,6 +320,9 @@ impl FrameStep<'_, '_> {
                         self.imu.then(|| self.drive.attitude_at(f.time_s)).flatten(),
                     ),
                 );
+                if let Some(e) = &fix.estimate {
+                    self.used.insert(f.frame, e.landmarks.clone());
+                }
                 (
                     fix.status.as_str().to_string(),
                     visual_of(&fix),

@@ -177,7 +177,7 @@ impl ImuSample {
                 (a / g, ACCELERATION_UP_TOLERANCE_RAD, None)
             }
         };
-        (up_tolerance_rad <= MAX_UP_TOLERANCE_RAD).then(|| AttitudePrior {
+        (up_tolerance_rad <= MAX_UP_TOLERANCE_RAD).then_some(AttitudePrior {
             up_in_rig,
             up_tolerance_rad: up_tolerance_rad + turned,
             heading,

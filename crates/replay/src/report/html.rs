@@ -1,441 +1,60 @@
-//! `report.html`: one self-contained page (inline CSS and inline SVG, no script, no
-//! network) that is also well-formed XML (XHTML syntax: every element closed).
+//! `report.html`: one self-contained, interactive page that is also well-formed XML
+//! (XHTML syntax: every element closed, scripts inside CDATA sections).
+//!
+//! - the summary table (rows without data, truth rows without truth, are left out);
+//! - an interactive map drawn by the inlined [Leaflet](https://leafletjs.com/) 1.9.4
+//!   (BSD 2-Clause, `assets/leaflet/`): pans and zooms from the whole drive down to
+//!   millimetres, every frame's fix coloured by its horizontal σ or by its status, the 95 %
+//!   covariance ellipses, the drive's landmarks, and a click on a fix shows its frame;
+//! - the horizontal error against time and the error CDFs, drawn with `plotters`' SVG
+//!   backend ([`super::svg_plots`]);
+//! - the text summary.
+//!
+//! The page asks for nothing over the network unless its reader ticks "online background
+//! map"; the scripts, styles, data and plots are all inline.
 
-use super::derived::{FrameGeom, derive, runs};
-use super::plot::{BLACKOUT_RGB, GNSS_RGB, TRUTH_RGB, VISUAL_RGB};
+use super::derived::derive;
 use super::stats::{Comparison, Report};
+use super::svg_plots::{error_cdf_svg, error_vs_time_svg};
 use super::text::summary_table;
 use super::time::utc_iso8601;
 use super::tracks::xml_escape;
-use super::{DriveInfo, FrameRecord};
-use nalgebra::Vector3;
+use super::{DriveInfo, FrameRecord, MIN_SURVEYED_LANDMARKS};
+use std::collections::{BTreeMap, HashMap};
 use std::fmt::Write;
 
-/// Width and height of every SVG figure (CSS pixels).
-const SVG_W: f64 = 900.0;
-const SVG_H: f64 = 560.0;
-/// Margins of the plot box inside a figure: left, right, top, bottom.
-const MARGIN: (f64, f64, f64, f64) = (70.0, 20.0, 20.0, 50.0);
+/// The vendored Leaflet script (1.9.4, BSD 2-Clause; see `assets/leaflet/README.md`).
+const LEAFLET_JS: &str = include_str!("../../assets/leaflet/leaflet.js");
+/// The vendored Leaflet style sheet.
+const LEAFLET_CSS: &str = include_str!("../../assets/leaflet/leaflet.css");
+/// vgps's map script (reads the global `VGPS`).
+const MAP_JS: &str = include_str!("../../assets/report/map.js");
 
-const CSS: &str = "body{font-family:sans-serif;margin:2em auto;max-width:960px;color:#222}\
+/// Marks the start of the vendored library in the page (tests skip what follows up to
+/// [`VENDOR_END`] when they look for "NaN" or network addresses in vgps's own output).
+pub const VENDOR_BEGIN: &str = "/* vendored: Leaflet 1.9.4, BSD 2-Clause licence, (c) 2010-2023 Volodymyr Agafonkin, (c) 2010-2011 CloudMade */";
+/// Marks the end of the vendored library in the page.
+pub const VENDOR_END: &str = "/* end of vendored Leaflet */";
+
+const CSS: &str = "body{font-family:sans-serif;margin:2em auto;max-width:1000px;color:#222;padding:0 1em}\
 h1{font-size:1.5em}h2{font-size:1.2em;margin-top:2em}\
 table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}\
-th:first-child,td:first-child{text-align:left}\
-svg{background:#fff;border:1px solid #ddd}svg text{font-size:12px;font-family:sans-serif}\
-pre{background:#f6f6f6;padding:1em;overflow-x:auto}";
+th:first-child,td:first-child{text-align:left}tr.headline td{font-weight:bold;background:#f4f8ff}\
+svg{background:#fff;border:1px solid #ddd;max-width:100%;height:auto}\
+pre{background:#f6f6f6;padding:1em;overflow-x:auto}\
+#vgps-map{height:600px;border:1px solid #bbb}\
+#vgps-controls{margin:.5em 0;font-size:.9em}#vgps-controls label{margin-right:1em}\
+#vgps-frame{min-height:8em;border:1px solid #ddd;background:#fafafa;padding:.5em;font-size:.9em;margin-top:.5em}\
+#vgps-frame .t{color:#666}.key span{display:inline-block;width:1em;height:1em;vertical-align:middle;margin:0 .3em 0 .8em;border:1px solid #555}";
 
-fn css_rgb(c: (u8, u8, u8)) -> String {
-    format!("#{:02x}{:02x}{:02x}", c.0, c.1, c.2)
-}
-
-/// A "nice" step (1, 2 or 5 × 10^k) giving about `target` intervals over `span`.
-fn nice_step(span: f64, target: f64) -> f64 {
-    if !(span.is_finite() && span > 0.0) {
-        return 1.0;
-    }
-    let raw = span / target;
-    let mag = 10f64.powf(raw.log10().floor());
-    let f = raw / mag;
-    let m = if f < 1.5 {
-        1.0
-    } else if f < 3.5 {
-        2.0
-    } else if f < 7.5 {
-        5.0
-    } else {
-        10.0
-    };
-    m * mag
-}
-
-/// Formats a tick value with as many decimals as the step needs.
-fn tick_label(v: f64, step: f64) -> String {
-    let decimals = if step >= 1.0 {
-        0
-    } else {
-        (-step.log10().floor()) as usize
-    };
-    let s = format!("{v:.decimals$}");
-    if s.starts_with('-') && s[1..].chars().all(|c| c == '0' || c == '.') {
-        s[1..].to_string()
-    } else {
-        s
-    }
-}
-
-/// Data → pixel mapping of one plot box.
-struct Axes {
-    x: (f64, f64),
-    y: (f64, f64),
-}
-
-impl Axes {
-    fn px(&self, x: f64) -> f64 {
-        MARGIN.0 + (x - self.x.0) / (self.x.1 - self.x.0) * (SVG_W - MARGIN.0 - MARGIN.1)
-    }
-    fn py(&self, y: f64) -> f64 {
-        SVG_H - MARGIN.3 - (y - self.y.0) / (self.y.1 - self.y.0) * (SVG_H - MARGIN.2 - MARGIN.3)
-    }
-    fn point(&self, x: f64, y: f64) -> String {
-        format!("{:.1},{:.1}", self.px(x), self.py(y))
-    }
-    /// Frame, grid, ticks and axis titles.
-    fn frame(&self, s: &mut String, x_title: &str, y_title: &str) {
-        let (l, r, t, b) = (MARGIN.0, SVG_W - MARGIN.1, MARGIN.2, SVG_H - MARGIN.3);
-        let xs = nice_step(self.x.1 - self.x.0, 8.0);
-        let ys = nice_step(self.y.1 - self.y.0, 6.0);
-        let mut v = (self.x.0 / xs).ceil() * xs;
-        while v <= self.x.1 + 1e-9 * xs {
-            let p = self.px(v);
-            let _ = writeln!(
-                s,
-                "<line x1=\"{p:.1}\" y1=\"{t:.1}\" x2=\"{p:.1}\" y2=\"{b:.1}\" stroke=\"#eee\"/>\
-                 <text x=\"{p:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{}</text>",
-                b + 16.0,
-                tick_label(v, xs)
-            );
-            v += xs;
-        }
-        let mut v = (self.y.0 / ys).ceil() * ys;
-        while v <= self.y.1 + 1e-9 * ys {
-            let p = self.py(v);
-            let _ = writeln!(
-                s,
-                "<line x1=\"{l:.1}\" y1=\"{p:.1}\" x2=\"{r:.1}\" y2=\"{p:.1}\" stroke=\"#eee\"/>\
-                 <text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">{}</text>",
-                l - 6.0,
-                p + 4.0,
-                tick_label(v, ys)
-            );
-            v += ys;
-        }
-        let _ = writeln!(
-            s,
-            "<rect x=\"{l:.1}\" y=\"{t:.1}\" width=\"{:.1}\" height=\"{:.1}\" fill=\"none\" stroke=\"#888\"/>\n\
-             <text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{}</text>\n\
-             <text transform=\"translate(16,{:.1}) rotate(-90)\" text-anchor=\"middle\">{}</text>",
-            r - l,
-            b - t,
-            0.5 * (l + r),
-            SVG_H - 10.0,
-            xml_escape(x_title),
-            0.5 * (t + b),
-            xml_escape(y_title)
-        );
-    }
-}
-
-fn svg_open(s: &mut String, label: &str) {
-    let _ = writeln!(
-        s,
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{SVG_W}\" height=\"{SVG_H}\" \
-         viewBox=\"0 0 {SVG_W} {SVG_H}\" role=\"img\" aria-label=\"{}\">",
-        xml_escape(label)
-    );
-}
-
-fn polyline(s: &mut String, pts: &[String], colour: &str, width: f64, extra: &str) {
-    if pts.is_empty() {
-        return;
-    }
-    let _ = writeln!(
-        s,
-        "<polyline points=\"{}\" fill=\"none\" stroke=\"{colour}\" stroke-width=\"{width}\" \
-         stroke-linejoin=\"round\"{extra}/>",
-        pts.join(" ")
-    );
-}
-
-fn legend(s: &mut String, items: &[(&str, String)]) {
-    let x = SVG_W - MARGIN.1 - 190.0;
-    let mut y = MARGIN.2 + 8.0;
-    let _ = writeln!(
-        s,
-        "<rect x=\"{:.1}\" y=\"{:.1}\" width=\"180\" height=\"{:.1}\" fill=\"#fff\" fill-opacity=\"0.85\" stroke=\"#aaa\"/>",
-        x - 5.0,
-        y - 4.0,
-        18.0 * items.len() as f64 + 6.0
-    );
-    for (name, colour) in items {
-        let _ = writeln!(
-            s,
-            "<rect x=\"{x:.1}\" y=\"{:.1}\" width=\"16\" height=\"8\" fill=\"{colour}\"/>\
-             <text x=\"{:.1}\" y=\"{:.1}\">{}</text>",
-            y + 2.0,
-            x + 22.0,
-            y + 10.0,
-            xml_escape(name)
-        );
-        y += 18.0;
-    }
-}
-
-type Get = fn(&FrameGeom) -> Option<Vector3<f64>>;
-
-fn track_map(s: &mut String, geom: &[FrameGeom]) {
-    svg_open(s, "track map");
-    let pts: Vec<Vector3<f64>> = geom
-        .iter()
-        .flat_map(|g| [g.visual, g.gnss, g.truth])
-        .flatten()
-        .collect();
-    if pts.is_empty() {
-        s.push_str("<text x=\"20\" y=\"40\">no positions</text>\n</svg>\n");
-        return;
-    }
-    let (mut x0, mut x1, mut y0, mut y1) = (pts[0].x, pts[0].x, pts[0].y, pts[0].y);
-    for p in &pts {
-        x0 = x0.min(p.x);
-        x1 = x1.max(p.x);
-        y0 = y0.min(p.y);
-        y1 = y1.max(p.y);
-    }
-    // Equal scales in both directions, 5 % margin, at least 10 m shown.
-    let (pw, ph) = (SVG_W - MARGIN.0 - MARGIN.1, SVG_H - MARGIN.2 - MARGIN.3);
-    let span = ((x1 - x0) / pw).max((y1 - y0) / ph).max(10.0 / pw) * 1.1;
-    let (cx, cy) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
-    let ax = Axes {
-        x: (cx - 0.5 * span * pw, cx + 0.5 * span * pw),
-        y: (cy - 0.5 * span * ph, cy + 0.5 * span * ph),
-    };
-    ax.frame(s, "east of origin (m)", "north of origin (m)");
-    // Blackout stretches: a wide band under the truth (or visual) track.
-    let under: Get = if geom.iter().any(|g| g.truth.is_some()) {
-        |g| g.truth
-    } else {
-        |g| g.visual
-    };
-    let band = css_rgb((240, 160, 40));
-    for (a, b) in runs(geom.iter().map(|g| g.blackout)) {
-        let line: Vec<String> = geom[a..=b]
-            .iter()
-            .filter_map(|g| under(g).map(|p| ax.point(p.x, p.y)))
-            .collect();
-        polyline(
-            s,
-            &line,
-            &band,
-            10.0,
-            " stroke-opacity=\"0.35\" stroke-linecap=\"round\"",
-        );
-    }
-    let tracks: [(Get, (u8, u8, u8), f64); 3] = [
-        (|g| g.truth, TRUTH_RGB, 2.5),
-        (|g| g.gnss, GNSS_RGB, 1.5),
-        (|g| g.visual, VISUAL_RGB, 1.5),
-    ];
-    for (get, colour, width) in tracks {
-        for (a, b) in runs(geom.iter().map(|g| get(g).is_some())) {
-            let line: Vec<String> = geom[a..=b]
-                .iter()
-                .filter_map(|g| get(g).map(|p| ax.point(p.x, p.y)))
-                .collect();
-            if let (1, Some(p)) = (line.len(), get(&geom[a])) {
-                let _ = writeln!(
-                    s,
-                    "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"2\" fill=\"{}\"/>",
-                    ax.px(p.x),
-                    ax.py(p.y),
-                    css_rgb(colour)
-                );
-            } else {
-                polyline(s, &line, &css_rgb(colour), width, "");
-            }
-        }
-    }
-    // Scale bar: a nice length close to a fifth of the plot width, bottom left.
-    let len = nice_step(0.2 * span * pw, 1.0);
-    let (bx, by) = (MARGIN.0 + 20.0, SVG_H - MARGIN.3 - 20.0);
-    let bw = len / span;
-    let _ = writeln!(
-        s,
-        "<g stroke=\"#000\" stroke-width=\"2\"><line x1=\"{bx:.1}\" y1=\"{by:.1}\" x2=\"{:.1}\" y2=\"{by:.1}\"/>\
-         <line x1=\"{bx:.1}\" y1=\"{:.1}\" x2=\"{bx:.1}\" y2=\"{:.1}\"/>\
-         <line x1=\"{:.1}\" y1=\"{:.1}\" x2=\"{:.1}\" y2=\"{:.1}\"/></g>\
-         <text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{} m</text>\n\
-         <text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">N &#8593;</text>",
-        bx + bw,
-        by - 5.0,
-        by + 5.0,
-        bx + bw,
-        by - 5.0,
-        bx + bw,
-        by + 5.0,
-        bx + 0.5 * bw,
-        by - 8.0,
-        tick_label(len, len),
-        SVG_W - MARGIN.1 - 20.0,
-        SVG_H - MARGIN.3 - 12.0
-    );
-    legend(
-        s,
-        &[
-            ("truth", css_rgb(TRUTH_RGB)),
-            ("satellite", css_rgb(GNSS_RGB)),
-            ("visual", css_rgb(VISUAL_RGB)),
-            ("satellite blackout", band),
-        ],
-    );
-    s.push_str("</svg>\n");
-}
-
-fn error_vs_time(s: &mut String, records: &[FrameRecord], geom: &[FrameGeom]) {
-    svg_open(s, "horizontal error against time");
-    let t0 = records
-        .iter()
-        .map(|r| r.time_s)
-        .find(|t| t.is_finite())
-        .unwrap_or(0.0);
-    let has_truth = geom.iter().any(|g| g.truth.is_some());
-    type Err = fn(&FrameGeom, bool) -> Option<f64>;
-    let series: [(&str, Err, (u8, u8, u8)); 2] = [
-        (
-            "satellite vs truth",
-            |g, _| g.gnss_vs_truth.map(|d| d.h),
-            GNSS_RGB,
-        ),
-        (
-            if has_truth {
-                "visual vs truth"
-            } else {
-                "visual vs satellite"
-            },
-            |g, t| {
-                if t {
-                    g.visual_vs_truth
-                } else {
-                    g.visual_vs_gnss
-                }
-                .map(|d| d.h)
-            },
-            VISUAL_RGB,
-        ),
-    ];
-    let times: Vec<f64> = records.iter().map(|r| r.time_s - t0).collect();
-    let t_end = times
-        .iter()
-        .copied()
-        .filter(|t| t.is_finite())
-        .fold(1.0, f64::max);
-    let e_max = geom
-        .iter()
-        .flat_map(|g| series.iter().map(move |(_, f, _)| f(g, has_truth)))
-        .flatten()
-        .fold(1.0, f64::max)
-        * 1.1;
-    let ax = Axes {
-        x: (0.0, t_end),
-        y: (0.0, e_max),
-    };
-    let (t, b) = (MARGIN.2, SVG_H - MARGIN.3);
-    for (a, z) in runs(geom.iter().map(|g| g.blackout)) {
-        let (xa, xz) = (times[a], times[z]);
-        if !(xa.is_finite() && xz.is_finite()) {
-            continue;
-        }
-        let _ = writeln!(
-            s,
-            "<rect x=\"{:.1}\" y=\"{t:.1}\" width=\"{:.1}\" height=\"{:.1}\" fill=\"{}\"/>",
-            ax.px(xa),
-            (ax.px(xz) - ax.px(xa)).max(1.0),
-            b - t,
-            css_rgb(BLACKOUT_RGB)
-        );
-    }
-    ax.frame(s, "time since first frame (s)", "horizontal error (m)");
-    let mut items = vec![("satellite blackout", css_rgb(BLACKOUT_RGB))];
-    for (name, f, colour) in series {
-        let pts: Vec<(f64, f64)> = geom
-            .iter()
-            .zip(&times)
-            .filter_map(|(g, &x)| Some((x, f(g, has_truth)?)).filter(|p| p.0.is_finite()))
-            .collect();
-        if pts.is_empty() {
-            continue;
-        }
-        let c = css_rgb(colour);
-        let _ = write!(s, "<g fill=\"{c}\">");
-        for (x, y) in pts {
-            let _ = write!(
-                s,
-                "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"1.8\"/>",
-                ax.px(x),
-                ax.py(y)
-            );
-        }
-        s.push_str("</g>\n");
-        items.push((name, c));
-    }
-    legend(s, &items);
-    s.push_str("</svg>\n");
-}
-
-fn error_cdf(s: &mut String, geom: &[FrameGeom]) {
-    svg_open(s, "cumulative distribution of horizontal errors");
-    type Pick = fn(&FrameGeom) -> Option<f64>;
-    let series: [(&str, Pick, String); 4] = [
-        (
-            "visual vs truth",
-            |g| g.visual_vs_truth.map(|d| d.h),
-            css_rgb(VISUAL_RGB),
-        ),
-        (
-            "visual vs truth, blackout",
-            |g| g.visual_vs_truth.filter(|_| g.blackout).map(|d| d.h),
-            "#f0a020".into(),
-        ),
-        (
-            "satellite vs truth",
-            |g| g.gnss_vs_truth.map(|d| d.h),
-            css_rgb(GNSS_RGB),
-        ),
-        (
-            "visual vs satellite",
-            |g| g.visual_vs_gnss.map(|d| d.h),
-            "#8040c0".into(),
-        ),
-    ];
-    let sorted: Vec<Vec<f64>> = series
-        .iter()
-        .map(|(_, f, _)| {
-            let mut v: Vec<f64> = geom.iter().filter_map(f).collect();
-            v.sort_by(f64::total_cmp);
-            v
-        })
-        .collect();
-    let x_max = sorted.iter().flatten().copied().fold(1.0, f64::max) * 1.05;
-    let ax = Axes {
-        x: (0.0, x_max),
-        y: (0.0, 1.0),
-    };
-    ax.frame(s, "horizontal error (m)", "fraction of frames");
-    for q in [0.5, 0.95] {
-        let _ = writeln!(
-            s,
-            "<line x1=\"{:.1}\" y1=\"{:.1}\" x2=\"{:.1}\" y2=\"{:.1}\" stroke=\"#999\" stroke-dasharray=\"4 3\"/>",
-            ax.px(0.0),
-            ax.py(q),
-            ax.px(x_max),
-            ax.py(q)
-        );
-    }
-    let mut items = Vec::new();
-    for ((name, _, colour), v) in series.iter().zip(&sorted) {
-        if v.is_empty() {
-            continue;
-        }
-        let n = v.len() as f64;
-        let mut pts = vec![ax.point(0.0, 0.0)];
-        for (i, &x) in v.iter().enumerate() {
-            pts.push(ax.point(x, i as f64 / n));
-            pts.push(ax.point(x, (i + 1) as f64 / n));
-        }
-        pts.push(ax.point(x_max, 1.0));
-        polyline(s, &pts, colour, 1.8, "");
-        items.push((*name, colour.clone()));
-    }
-    legend(s, &items);
-    s.push_str("</svg>\n");
+/// What the report's map shows besides the frames: the drive's surveyed landmarks and, per
+/// frame, the ids of the surveyed landmarks its fix used.
+#[derive(Clone, Debug, Default)]
+pub struct MapExtras {
+    /// The drive's surveyed landmarks.
+    pub landmarks: Vec<vgps_io::Landmark>,
+    /// Frame number → ids of the surveyed landmarks its fix used.
+    pub used: BTreeMap<u64, Vec<String>>,
 }
 
 fn num(x: Option<f64>, decimals: usize) -> String {
@@ -444,12 +63,12 @@ fn num(x: Option<f64>, decimals: usize) -> String {
         .unwrap_or_else(|| "&#8211;".into())
 }
 
-fn comparison_row(s: &mut String, name: &str, c: &Option<Comparison>) {
+fn comparison_row(s: &mut String, name: &str, c: &Option<Comparison>, class: &str) {
     let Some(c) = c else { return };
     let h = &c.horizontal_m;
     let _ = writeln!(
         s,
-        "<tr><td>{}</td><td>{}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td></tr>",
+        "<tr{class}><td>{}</td><td>{}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td></tr>",
         xml_escape(name),
         c.n,
         h.cep50,
@@ -460,23 +79,189 @@ fn comparison_row(s: &mut String, name: &str, c: &Option<Comparison>) {
     );
 }
 
-/// `report.html`: the title and time span, the accuracy table (overall and during
-/// blackouts), the track map (ENU metres at the drive origin, equal scales, scale bar,
-/// blackout stretches as an orange band), the horizontal error against time (blackouts
-/// shaded), the error CDFs (dashed lines at 50 % and 95 %) and the text summary.
-///
-/// The page loads nothing: CSS and SVG are inline and there is no script. It is written
-/// in XHTML syntax, so it parses as XML as well as HTML.
+/// A JSON number with `decimals` decimals, `null` when not finite.
+fn jnum(s: &mut String, x: f64, decimals: usize) {
+    if x.is_finite() {
+        let _ = write!(s, "{x:.decimals$}");
+    } else {
+        s.push_str("null");
+    }
+}
+
+/// A JSON string safe inside a script element and a CDATA section.
+fn jstr(s: &mut String, text: &str) {
+    let quoted = serde_json::Value::from(text).to_string();
+    s.push_str(
+        &quoted
+            .replace('<', "\\u003c")
+            .replace('>', "\\u003e")
+            .replace('&', "\\u0026"),
+    );
+}
+
+/// `[lat, lon]` with 9 decimals (0.1 mm).
+fn jlatlon(s: &mut String, g: &vgps_geometry::geo::Geodetic) {
+    s.push('[');
+    jnum(s, g.lat_deg, 9);
+    s.push(',');
+    jnum(s, g.lon_deg, 9);
+    s.push(']');
+}
+
+/// The map's data: `window.VGPS = {…}` (see `assets/report/map.js` for the row layout).
+fn map_data(drive: &DriveInfo, records: &[FrameRecord], extras: &MapExtras) -> String {
+    let mut s = String::from("window.VGPS={\"name\":");
+    jstr(&mut s, &drive.name);
+    s.push_str(",\"origin\":");
+    jlatlon(&mut s, &drive.origin);
+    let has_truth = records.iter().any(|r| r.truth.is_some());
+    let _ = write!(s, ",\"has_truth\":{has_truth},\"statuses\":[");
+    let mut statuses: Vec<&str> = records.iter().map(|r| r.status.as_str()).collect();
+    statuses.sort_unstable();
+    statuses.dedup();
+    for (k, st) in statuses.iter().enumerate() {
+        if k > 0 {
+            s.push(',');
+        }
+        jstr(&mut s, st);
+    }
+    let status_index: HashMap<&str, usize> = statuses
+        .iter()
+        .enumerate()
+        .map(|(k, st)| (*st, k))
+        .collect();
+    let landmark_index: HashMap<&str, usize> = extras
+        .landmarks
+        .iter()
+        .enumerate()
+        .map(|(k, l)| (l.id.as_str(), k))
+        .collect();
+    let mut use_count = vec![0usize; extras.landmarks.len()];
+    s.push_str("],\"frames\":[");
+    for (k, r) in records.iter().enumerate() {
+        if k > 0 {
+            s.push(',');
+        }
+        s.push('[');
+        let _ = write!(s, "{},", r.frame);
+        jnum(&mut s, r.time_s, 3);
+        let _ = write!(
+            s,
+            ",{},",
+            status_index.get(r.status.as_str()).copied().unwrap_or(0)
+        );
+        match &r.visual {
+            Some(v) => {
+                s.push('[');
+                jnum(&mut s, v.geodetic.lat_deg, 9);
+                s.push(',');
+                jnum(&mut s, v.geodetic.lon_deg, 9);
+                let c = &v.horizontal_covariance_m2;
+                for (x, d) in [
+                    (v.sigma_e_m, 4),
+                    (v.sigma_n_m, 4),
+                    (v.sigma_u_m, 4),
+                    (c[(0, 0)], 7),
+                    (c[(0, 1)], 7),
+                    (c[(1, 1)], 7),
+                ] {
+                    s.push(',');
+                    jnum(&mut s, x, d);
+                }
+                let _ = write!(s, ",{},{},", v.n_landmarks, v.n_surrogates);
+                jnum(&mut s, v.heading_deg, 2);
+                s.push(']');
+            }
+            None => s.push_str("null"),
+        }
+        s.push(',');
+        match &r.gnss {
+            Some(g) => jlatlon(&mut s, g),
+            None => s.push_str("null"),
+        }
+        s.push(',');
+        match &r.truth {
+            Some(t) => jlatlon(&mut s, &t.geodetic),
+            None => s.push_str("null"),
+        }
+        s.push_str(",[");
+        if r.visual.is_some() {
+            let ids = extras.used.get(&r.frame).map(Vec::as_slice).unwrap_or(&[]);
+            let mut first = true;
+            for i in ids.iter().filter_map(|id| landmark_index.get(id.as_str())) {
+                use_count[*i] += 1;
+                if !first {
+                    s.push(',');
+                }
+                first = false;
+                let _ = write!(s, "{i}");
+            }
+        }
+        s.push_str("]]");
+    }
+    s.push_str("],\"landmarks\":[");
+    for (k, l) in extras.landmarks.iter().enumerate() {
+        if k > 0 {
+            s.push(',');
+        }
+        s.push('[');
+        jstr(&mut s, &l.id);
+        s.push(',');
+        jnum(&mut s, l.lat_deg, 9);
+        s.push(',');
+        jnum(&mut s, l.lon_deg, 9);
+        let _ = write!(s, ",{}]", use_count[k]);
+    }
+    s.push_str("]};\n");
+    s
+}
+
+fn script(s: &mut String, body: &str) {
+    s.push_str("<script>//<![CDATA[\n");
+    s.push_str(body);
+    s.push_str("\n//]]></script>\n");
+}
+
+/// `report.html` without landmarks: [`report_html_with`] and an empty [`MapExtras`].
 pub fn report_html(drive: &DriveInfo, records: &[FrameRecord], report: &Report) -> String {
+    report_html_with(drive, records, report, &MapExtras::default())
+}
+
+/// `report.html`: the title and time span, the accuracy table (the visual fixes with
+/// ≥ [`MIN_SURVEYED_LANDMARKS`] surveyed landmarks as the headline row, truth rows only
+/// with truth, the blackout row), the interactive map (fixes coloured by σ or status, 95 %
+/// ellipses when zoomed in, `extras`' landmarks, a click on a fix shows its frame), the
+/// horizontal error against time (blackouts shaded), the error CDFs and the text summary.
+///
+/// The page loads nothing: scripts (vendored Leaflet and vgps's map script), styles, data
+/// and SVG plots are inline, unless the reader ticks the online background map. It is
+/// written in XHTML syntax, so it parses as XML as well as HTML. A plot that cannot be
+/// drawn is replaced by its error message.
+pub fn report_html_with(
+    drive: &DriveInfo,
+    records: &[FrameRecord],
+    report: &Report,
+    extras: &MapExtras,
+) -> String {
     let geom = derive(drive, records);
+    let has_truth = records.iter().any(|r| r.truth.is_some());
+    let has_gnss = records.iter().any(|r| r.gnss.is_some());
     let name = xml_escape(&drive.name);
-    let mut s = String::new();
+    let mut s = String::with_capacity(300_000 + 200 * records.len());
     let _ = writeln!(
         s,
         "<!DOCTYPE html>\n<html xmlns=\"http://www.w3.org/1999/xhtml\" lang=\"en\">\n<head>\n\
-         <meta charset=\"utf-8\"/>\n<title>vgps replay: {name}</title>\n<style>{CSS}</style>\n\
-         </head>\n<body>\n<h1>vgps replay: {name}</h1>"
+         <meta charset=\"utf-8\"/>\n<title>vgps replay: {name}</title>\n<style>{CSS}</style>"
     );
+    s.push_str("<style>/*<![CDATA[*/\n");
+    s.push_str(LEAFLET_CSS);
+    s.push_str("\n/*]]>*/</style>\n");
+    // Collect script errors from the first moment (read by the headless-browser test).
+    script(
+        &mut s,
+        "window.VGPS_ERRORS=[];window.addEventListener('error',function(e){window.VGPS_ERRORS.push(String(e.message));});",
+    );
+    let _ = writeln!(s, "</head>\n<body>\n<h1>vgps replay: {name}</h1>");
     let span = match (
         report.first_time_s.and_then(utc_iso8601),
         report.last_time_s.and_then(utc_iso8601),
@@ -499,25 +284,38 @@ pub fn report_html(drive: &DriveInfo, records: &[FrameRecord], report: &Report) 
         "<h2>Summary</h2>\n<table>\n<tr><th>horizontal (m)</th><th>n</th><th>CEP50</th>\
          <th>CEP95</th><th>RMS</th><th>max</th><th>vertical RMS</th></tr>\n",
     );
-    comparison_row(&mut s, "visual vs truth", &report.visual_vs_truth);
-    comparison_row(&mut s, "satellite vs truth", &report.gnss_vs_truth);
-    comparison_row(&mut s, "visual vs satellite", &report.visual_vs_gnss);
+    let headline = format!("visual vs truth, \u{2265} {MIN_SURVEYED_LANDMARKS} surveyed");
+    comparison_row(
+        &mut s,
+        &headline,
+        &report.visual_vs_truth_surveyed,
+        " class=\"headline\"",
+    );
+    comparison_row(&mut s, "visual vs truth", &report.visual_vs_truth, "");
+    comparison_row(&mut s, "satellite vs truth", &report.gnss_vs_truth, "");
+    comparison_row(&mut s, "visual vs satellite", &report.visual_vs_gnss, "");
     comparison_row(
         &mut s,
         "visual vs truth, blackout",
         &report.blackout.visual_vs_truth,
+        "",
     );
     s.push_str("</table>\n");
     let b = &report.blackout;
     let _ = write!(
         s,
-        "<p>Satellite blackouts: {} frames in {} stretches, visual fix rate {} %. \
-         Median heading error {} &#176;.",
+        "<p>Satellite blackouts: {} frames in {} stretches, visual fix rate {} %.",
         b.frames,
         b.stretches.len(),
         num(b.visual_fix_rate.map(|r| 100.0 * r), 1),
-        num(report.heading_error_median_deg, 3)
     );
+    if report.heading_error_median_deg.is_some() {
+        let _ = write!(
+            s,
+            " Median heading error {} &#176;.",
+            num(report.heading_error_median_deg, 3)
+        );
+    }
     if let Some(c) = &report.covariance_consistency {
         let _ = write!(
             s,
@@ -527,16 +325,65 @@ pub fn report_html(drive: &DriveInfo, records: &[FrameRecord], report: &Report) 
             num(Some(100.0 * c.fraction_inside_95), 1)
         );
     }
-    s.push_str("</p>\n<h2>Track map</h2>\n");
-    track_map(&mut s, &geom);
+    s.push_str("</p>\n<h2>Map</h2>\n");
+    map_section(&mut s, has_truth, has_gnss);
     s.push_str("<h2>Horizontal error against time</h2>\n");
-    error_vs_time(&mut s, records, &geom);
+    push_plot(&mut s, error_vs_time_svg(records, &geom));
     s.push_str("<h2>Cumulative distribution of the horizontal error</h2>\n");
-    error_cdf(&mut s, &geom);
+    push_plot(&mut s, error_cdf_svg(&geom));
     let _ = writeln!(
         s,
-        "<h2>Text summary</h2>\n<pre>{}</pre>\n</body>\n</html>",
+        "<h2>Text summary</h2>\n<pre>{}</pre>",
         xml_escape(&summary_table(report))
     );
+    script(&mut s, &map_data(drive, records, extras));
+    s.push_str("<script>//<![CDATA[\n");
+    s.push_str(VENDOR_BEGIN);
+    s.push('\n');
+    s.push_str(LEAFLET_JS);
+    s.push('\n');
+    s.push_str(VENDOR_END);
+    s.push_str("\n//]]></script>\n");
+    script(&mut s, MAP_JS);
+    s.push_str("</body>\n</html>\n");
     s
+}
+
+fn push_plot(s: &mut String, svg: Result<String, super::ReportError>) {
+    match svg {
+        // plotters starts with an XML declaration: not allowed inside the page.
+        Ok(svg) => {
+            let body = match svg.find("<svg") {
+                Some(k) => &svg[k..],
+                None => svg.as_str(),
+            };
+            s.push_str(body);
+            s.push('\n');
+        }
+        Err(e) => {
+            let _ = writeln!(s, "<p>{}</p>", xml_escape(&e.to_string()));
+        }
+    }
+}
+
+fn map_section(s: &mut String, has_truth: bool, has_gnss: bool) {
+    s.push_str("<div id=\"vgps-controls\">");
+    if has_truth {
+        s.push_str("<label><input type=\"checkbox\" id=\"vgps-show-truth\" checked=\"checked\"/> <span style=\"color:#1ea03c\">truth</span></label>");
+    }
+    if has_gnss {
+        s.push_str("<label><input type=\"checkbox\" id=\"vgps-show-gnss\" checked=\"checked\"/> <span style=\"color:#286edc\">satellite</span></label>");
+    }
+    s.push_str(
+        "<label><input type=\"checkbox\" id=\"vgps-show-visual\" checked=\"checked\"/> <span style=\"color:#dc2828\">visual track</span></label>\
+         <label><input type=\"checkbox\" id=\"vgps-show-landmarks\" checked=\"checked\"/> landmarks</label>\
+         <label><input type=\"checkbox\" id=\"vgps-show-ellipses\" checked=\"checked\"/> 95 % ellipses (when zoomed in)</label>\
+         <label><input type=\"checkbox\" id=\"vgps-show-background\"/> online background map</label>\
+         <label>colour fixes by <select id=\"vgps-colour\"><option value=\"sigma\" selected=\"selected\">horizontal &#963;</option><option value=\"status\">status</option></select></label>\
+         <div class=\"key\" id=\"vgps-key-sigma\">&#963;:<span style=\"background:#1a9850\"></span>&lt; 2 cm<span style=\"background:#91cf60\"></span>2&#8211;5 cm<span style=\"background:#fee08b\"></span>5&#8211;10 cm<span style=\"background:#fc8d59\"></span>10&#8211;25 cm<span style=\"background:#d73027\"></span>&#8805; 25 cm<span style=\"background:#888\"></span>no fix</div>\
+         <div class=\"key\" id=\"vgps-key-status\"><span style=\"background:#2060c0\"></span>fix, &#8805; 3 surveyed<span style=\"background:#f08c00\"></span>fix, fewer surveyed<span style=\"background:#888\"></span>no fix (drawn at the satellite or true position)</div>\
+         </div>\n<div id=\"vgps-map\"></div>\n\
+         <div id=\"vgps-frame\">Click a fix on the map to see its frame. Scroll or pinch to zoom, drag to pan.</div>\n\
+         <pre id=\"vgps-selftest\" style=\"display:none\"></pre>\n",
+    );
 }

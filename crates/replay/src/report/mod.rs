@@ -11,8 +11,9 @@
 //! - [`summary_table`]: the same as a text table for stdout;
 //! - [`fixes_csv`], [`track_geojson`], [`track_kml`], [`track_gpx`], [`fixes_nmea`]: the
 //!   per-frame table and the track formats;
-//! - [`report_html`]: one self-contained page (inline CSS and SVG) with the track map, the
-//!   error against time, the error CDFs and the summary;
+//! - [`report_html`] / [`report_html_with`]: one self-contained interactive page (inline
+//!   scripts, CSS and SVG) with a pan-and-zoom map of the fixes, their 95 % ellipses and
+//!   the landmarks, the error against time, the error CDFs and the summary;
 //! - [`plot_track_png`], [`plot_error_png`]: PNG plots;
 //! - [`write_outputs`]: all of them into a directory, each written atomically.
 //!
@@ -56,13 +57,14 @@ mod html;
 mod nmea;
 mod plot;
 mod stats;
+mod svg_plots;
 mod text;
 pub(crate) mod time;
 mod tracks;
 
 pub use atomic::write_atomic;
 pub use csv_out::{FIXES_COLUMNS, IMAGE_COLUMNS, TRUTH_COLUMNS, fixes_csv};
-pub use html::report_html;
+pub use html::{MapExtras, VENDOR_BEGIN, VENDOR_END, report_html, report_html_with};
 pub use nmea::{
     GGA_QUALITY_VISUAL, MAX_VELOCITY_GAP_S, NMEA_TALKER, NmeaEpochWriter, error_ellipse,
     fixes_nmea, nmea_checksum,
@@ -255,6 +257,20 @@ pub fn write_outputs(
     drive: &DriveInfo,
     records: &[FrameRecord],
 ) -> Result<(Report, Vec<PathBuf>), ReportError> {
+    write_outputs_with(dir, drive, records, &MapExtras::default())
+}
+
+/// [`write_outputs`] with the landmarks (and the landmarks each fix used) shown on the map
+/// of `report.html` ([`report_html_with`]).
+///
+/// # Errors
+/// As [`write_outputs`].
+pub fn write_outputs_with(
+    dir: &Path,
+    drive: &DriveInfo,
+    records: &[FrameRecord],
+    extras: &MapExtras,
+) -> Result<(Report, Vec<PathBuf>), ReportError> {
     std::fs::create_dir_all(dir).map_err(|e| ReportError::Io {
         path: dir.display().to_string(),
         reason: e.to_string(),
@@ -264,7 +280,7 @@ pub fn write_outputs(
         Ok(match OUTPUT_FILES[k] {
             "fixes.csv" => fixes_csv(drive, records).into_bytes(),
             "report.json" => report.to_json().into_bytes(),
-            "report.html" => report_html(drive, records, &report).into_bytes(),
+            "report.html" => report_html_with(drive, records, &report, extras).into_bytes(),
             "track.geojson" => track_geojson(drive, records).into_bytes(),
             "track.kml" => track_kml(drive, records).into_bytes(),
             "track.gpx" => track_gpx(drive, records).into_bytes(),

@@ -24,10 +24,17 @@ const FONT_FAMILY: &str = "vgps-mono";
 
 static FONT: Once = Once::new();
 
-fn register_font() {
+/// Registers the embedded font with plotters, as [`FONT_FAMILY`] (PNG plots) and as
+/// `sans-serif` (the layout font of the SVG plots of `report.html`).
+pub(crate) fn register_font() {
     FONT.call_once(|| {
         // A failure leaves text undrawn (plotters then reports an error per label).
         let _ = plotters::style::register_font(FONT_FAMILY, FontStyle::Normal, FONT_BYTES);
+        let _ = plotters::style::register_font(
+            super::svg_plots::SVG_FONT,
+            FontStyle::Normal,
+            FONT_BYTES,
+        );
     });
 }
 
