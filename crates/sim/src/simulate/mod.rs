@@ -35,7 +35,7 @@ mod world;
 
 pub use route::{Route, TURN_RADIUS_M};
 pub use world::{
-    Building, CityParams, KERB_M, LAMP_ARM_M, LandmarkClass, SETBACK_M, Source, VisiblePoint,
+    Building, CORNER_CLEARANCE_M, CityParams, KERB_M, LAMP_ARM_M, LandmarkClass, SETBACK_M, Source, VisiblePoint,
     World, WorldLandmark, observe, project,
 };
 
