@@ -99,7 +99,8 @@ fn main() {
         let sun = sun_position(f.time_s, sc.origin.lat_deg, sc.origin.lon_deg).direction_in_enu();
         for (k, camera) in sc.rig.cameras().iter().enumerate() {
             let t = Instant::now();
-            let Some(frame) = renderer.render(&scene, &f.world_from_rig, k, &sun, f.frame * 7 + k as u64)
+            let Some(frame) =
+                renderer.render(&scene, &f.world_from_rig, k, &sun, f.frame * 7 + k as u64)
             else {
                 continue;
             };

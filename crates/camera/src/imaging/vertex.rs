@@ -141,7 +141,11 @@ impl<'a> Rectifier<'a> {
         if !(angle > 0.0) {
             return None;
         }
-        let helper = if b0.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+        let helper = if b0.x.abs() < 0.9 {
+            Vector3::x()
+        } else {
+            Vector3::y()
+        };
         let e2 = b0.cross(&helper).normalize();
         let e1 = e2.cross(&b0);
         Some(Self {
@@ -375,7 +379,11 @@ fn histogram_peaks(histogram: &[f64; ORIENTATION_BINS], min_separation: f64) -> 
         .map(|i| {
             let (l, m, r) = (smooth[(i + n - 1) % n], smooth[i], smooth[(i + 1) % n]);
             let denom = l - 2.0 * m + r;
-            let offset = if denom < 0.0 { 0.5 * (l - r) / denom } else { 0.0 };
+            let offset = if denom < 0.0 {
+                0.5 * (l - r) / denom
+            } else {
+                0.0
+            };
             let angle = (i as f64 + 0.5 + offset) * std::f64::consts::PI / n as f64;
             (m, angle)
         })
@@ -461,9 +469,11 @@ fn sobel(src: &[u8], w: usize, h: usize) -> (Vec<f32>, Vec<f32>) {
                 src[((v as isize + dv) as usize) * w + (u as isize + du) as usize] as f32
             };
             let i = v * w + u;
-            gx[i] = ((p(1, -1) + 2.0 * p(1, 0) + p(1, 1)) - (p(-1, -1) + 2.0 * p(-1, 0) + p(-1, 1)))
+            gx[i] = ((p(1, -1) + 2.0 * p(1, 0) + p(1, 1))
+                - (p(-1, -1) + 2.0 * p(-1, 0) + p(-1, 1)))
                 / 8.0;
-            gy[i] = ((p(-1, 1) + 2.0 * p(0, 1) + p(1, 1)) - (p(-1, -1) + 2.0 * p(0, -1) + p(1, -1)))
+            gy[i] = ((p(-1, 1) + 2.0 * p(0, 1) + p(1, 1))
+                - (p(-1, -1) + 2.0 * p(0, -1) + p(1, -1)))
                 / 8.0;
         }
     }
@@ -482,7 +492,11 @@ fn shi_tomasi(gx: &[f32], gy: &[f32], w: usize, h: usize) -> Vec<f32> {
     let count = ((2 * TENSOR_RADIUS + 1) * (2 * TENSOR_RADIUS + 1)) as f32;
     (0..w * h)
         .map(|i| {
-            let (a, c, b) = (summed[0][i] / count, summed[1][i] / count, summed[2][i] / count);
+            let (a, c, b) = (
+                summed[0][i] / count,
+                summed[1][i] / count,
+                summed[2][i] / count,
+            );
             let half = 0.5 * (a + c);
             half - (0.25 * (a - c) * (a - c) + b * b).sqrt()
         })
@@ -572,12 +586,28 @@ mod tests {
     #[test]
     fn a_straight_edge_and_a_flat_image_give_no_corner() {
         let flat = GrayImage::from_pixel(64, 64, image::Luma([100]));
-        assert!(VertexDetector::default().detect(&flat, None, None).is_empty());
+        assert!(
+            VertexDetector::default()
+                .detect(&flat, None, None)
+                .is_empty()
+        );
         let edge = GrayImage::from_fn(64, 64, |u, v| {
-            image::Luma([if (u as f64) * 0.9 + (v as f64) * 0.3 > 35.0 { 180 } else { 50 }])
+            image::Luma([if (u as f64) * 0.9 + (v as f64) * 0.3 > 35.0 {
+                180
+            } else {
+                50
+            }])
         });
-        assert!(VertexDetector::default().detect(&edge, None, None).is_empty());
+        assert!(
+            VertexDetector::default()
+                .detect(&edge, None, None)
+                .is_empty()
+        );
         let tiny = GrayImage::new(5, 5);
-        assert!(VertexDetector::default().detect(&tiny, None, None).is_empty());
+        assert!(
+            VertexDetector::default()
+                .detect(&tiny, None, None)
+                .is_empty()
+        );
     }
 }

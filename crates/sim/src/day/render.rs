@@ -139,7 +139,10 @@ struct Object {
 }
 
 enum Shape {
-    Box { min: Vector3<f64>, max: Vector3<f64> },
+    Box {
+        min: Vector3<f64>,
+        max: Vector3<f64>,
+    },
     Sphere,
 }
 
@@ -174,8 +177,14 @@ impl DayRenderer {
                 for ty in 0..tiles_y {
                     for tx in 0..tiles_x {
                         // The tile and a one-pixel border (sub-samples reach ±0.5 px).
-                        let (u0, u1) = ((tx * TILE_PX).saturating_sub(1), ((tx + 1) * TILE_PX + 1).min(w));
-                        let (v0, v1) = ((ty * TILE_PX).saturating_sub(1), ((ty + 1) * TILE_PX + 1).min(h));
+                        let (u0, u1) = (
+                            (tx * TILE_PX).saturating_sub(1),
+                            ((tx + 1) * TILE_PX + 1).min(w),
+                        );
+                        let (v0, v1) = (
+                            (ty * TILE_PX).saturating_sub(1),
+                            ((ty + 1) * TILE_PX + 1).min(h),
+                        );
                         let mut sum = Vector3::zeros();
                         let mut all = Vec::new();
                         for v in v0..v1 {
@@ -299,8 +308,7 @@ impl DayRenderer {
                 if !b[0].is_finite() {
                     continue;
                 }
-                let d = enu_from_camera
-                    * Vector3::new(b[0] as f64, b[1] as f64, b[2] as f64);
+                let d = enu_from_camera * Vector3::new(b[0] as f64, b[1] as f64, b[2] as f64);
                 let cands = &tile_objects[(v / TILE_PX) * table.tiles_x + u / TILE_PX];
                 let (id, value) = shader.sample(&d, cands);
                 ids[i] = id;
@@ -381,7 +389,8 @@ impl DayRenderer {
                 continue;
             }
             let (tu, tv) = (pixel.x.round() as usize, pixel.y.round() as usize);
-            let cands = &tile_objects[(tv.min(h - 1) / TILE_PX) * table.tiles_x + tu.min(w - 1) / TILE_PX];
+            let cands =
+                &tile_objects[(tv.min(h - 1) / TILE_PX) * table.tiles_x + tu.min(w - 1) / TILE_PX];
             let d = rel / range_m;
             if shader.occluded(&d, cands, range_m - OCCLUSION_MARGIN_M) {
                 continue;
@@ -418,7 +427,8 @@ fn interpolated_bearing(table: &CameraTable, u: f64, v: f64) -> Option<Vector3<f
         + get(u1, v0) * (fu * (1.0 - fv))
         + get(u0, v1) * ((1.0 - fu) * fv)
         + get(u1, v1) * (fu * fv);
-    b.try_normalize(1e-12).filter(|b| b.iter().all(|x| x.is_finite()))
+    b.try_normalize(1e-12)
+        .filter(|b| b.iter().all(|x| x.is_finite()))
 }
 
 struct Shader<'a> {
@@ -531,12 +541,7 @@ impl Shader<'_> {
         if let Some(k) = hit.object {
             let ob = &self.objects[k];
             let p = self.origin + d * hit.t;
-            let face = hit
-                .normal
-                .iter()
-                .position(|x| x.abs() > 0.5)
-                .unwrap_or(0) as u32
-                * 2
+            let face = hit.normal.iter().position(|x| x.abs() > 0.5).unwrap_or(0) as u32 * 2
                 + u32::from(hit.normal.iter().any(|x| *x > 0.5));
             let base = 16 + (ob.index as u32) * 64 + face * 4;
             if ob.index >= self.scene.boxes.len() {
@@ -570,7 +575,11 @@ impl Shader<'_> {
 }
 
 /// The material (0 wall, 1 window, 2 awning) and reflectance of a building's face at `p`.
-fn facade_material(b: &super::scene::SceneBox, p: &Vector3<f64>, normal: &Vector3<f64>) -> (u32, f64) {
+fn facade_material(
+    b: &super::scene::SceneBox,
+    p: &Vector3<f64>,
+    normal: &Vector3<f64>,
+) -> (u32, f64) {
     if normal.z.abs() > 0.5 {
         return (0, b.albedo);
     }

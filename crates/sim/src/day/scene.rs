@@ -111,13 +111,22 @@ impl DayScene {
             }
         }
         let (lo, hi) = world.buildings.iter().fold(
-            (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY)),
+            (
+                Vector3::repeat(f64::INFINITY),
+                Vector3::repeat(f64::NEG_INFINITY),
+            ),
             |(lo, hi), b| (lo.inf(&b.min), hi.sup(&b.max)),
         );
         let mut canopies = Vec::new();
         if lo.x.is_finite() && block_m > 2.0 * INTERSECTION_CLEAR_M {
-            let (i0, i1) = ((lo.x / block_m).floor() as i64, (hi.x / block_m).ceil() as i64);
-            let (j0, j1) = ((lo.y / block_m).floor() as i64, (hi.y / block_m).ceil() as i64);
+            let (i0, i1) = (
+                (lo.x / block_m).floor() as i64,
+                (hi.x / block_m).ceil() as i64,
+            );
+            let (j0, j1) = (
+                (lo.y / block_m).floor() as i64,
+                (hi.y / block_m).ceil() as i64,
+            );
             // Streets along x at y = j·block (between nodes i and i+1), and along y.
             let mut streets = Vec::new();
             for j in j0..=j1 {
@@ -211,7 +220,11 @@ pub(crate) fn ground_at(x: f64, y: f64, block_m: f64) -> Ground {
     let d = dx.abs().min(dy.abs());
     if d < KERB_M - KERB_BAND_M {
         // The centre line of the street we are on (not inside an intersection).
-        let (lateral, along) = if dy.abs() < dx.abs() { (dy, x) } else { (dx, y) };
+        let (lateral, along) = if dy.abs() < dx.abs() {
+            (dy, x)
+        } else {
+            (dx, y)
+        };
         let in_intersection = dx.abs() < KERB_M && dy.abs() < KERB_M;
         if !in_intersection
             && lateral.abs() < LANE_MARK_HALF_M

@@ -32,7 +32,10 @@ pub struct SunPosition {
 impl SunPosition {
     /// The unit direction towards the sun in the local ENU frame (x east, y north, z up).
     pub fn direction_in_enu(&self) -> Vector3<f64> {
-        let (az, el) = (self.azimuth_deg.to_radians(), self.elevation_deg.to_radians());
+        let (az, el) = (
+            self.azimuth_deg.to_radians(),
+            self.elevation_deg.to_radians(),
+        );
         Vector3::new(az.sin() * el.cos(), az.cos() * el.cos(), el.sin())
     }
 }
@@ -56,7 +59,8 @@ pub fn sun_position(unix_s: f64, lat_deg: f64, lon_deg: f64) -> SunPosition {
     let ecliptic_longitude =
         (mean_longitude + 1.915 * g.sin() + 0.020 * (2.0 * g).sin()).to_radians();
     let obliquity = (23.439 - 0.000_000_4 * n).to_radians();
-    let right_ascension = (obliquity.cos() * ecliptic_longitude.sin()).atan2(ecliptic_longitude.cos());
+    let right_ascension =
+        (obliquity.cos() * ecliptic_longitude.sin()).atan2(ecliptic_longitude.cos());
     let declination = (obliquity.sin() * ecliptic_longitude.sin()).asin();
     let gmst_h = (18.697_374_558 + 24.065_709_824_419_08 * n).rem_euclid(24.0);
     let hour_angle = (gmst_h * 15.0 + lon_deg).to_radians() - right_ascension;
@@ -65,8 +69,8 @@ pub fn sun_position(unix_s: f64, lat_deg: f64, lon_deg: f64) -> SunPosition {
         + lat.cos() * declination.cos() * hour_angle.cos())
     .clamp(-1.0, 1.0)
     .asin();
-    let azimuth = (-hour_angle.sin())
-        .atan2(declination.tan() * lat.cos() - lat.sin() * hour_angle.cos());
+    let azimuth =
+        (-hour_angle.sin()).atan2(declination.tan() * lat.cos() - lat.sin() * hour_angle.cos());
     SunPosition {
         azimuth_deg: azimuth.to_degrees().rem_euclid(360.0),
         elevation_deg: elevation.to_degrees(),
@@ -85,10 +89,17 @@ mod tests {
         let sun = sun_position(1_066_419_030.0, 39.742476, -105.1786);
         let zenith = 90.0 - sun.elevation_deg;
         assert!((zenith - 50.11162).abs() < 0.05, "zenith {zenith}");
-        assert!((sun.azimuth_deg - 194.34024).abs() < 0.05, "azimuth {}", sun.azimuth_deg);
+        assert!(
+            (sun.azimuth_deg - 194.34024).abs() < 0.05,
+            "azimuth {}",
+            sun.azimuth_deg
+        );
         let d = sun.direction_in_enu();
         assert!((d.norm() - 1.0).abs() < 1e-12);
-        assert!(d.x < 0.0 && d.y < 0.0 && d.z > 0.0, "south-south-west and up: {d:?}");
+        assert!(
+            d.x < 0.0 && d.y < 0.0 && d.z > 0.0,
+            "south-south-west and up: {d:?}"
+        );
     }
 
     #[test]

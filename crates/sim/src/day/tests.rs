@@ -17,7 +17,10 @@ fn one_building_scene() -> DayScene {
         }],
         canopies: vec![],
         block_m: 1000.0,
-        corners: vec![(7, Vector3::new(20.0, 5.0, 12.0)), (8, Vector3::new(40.0, 25.0, 12.0))],
+        corners: vec![
+            (7, Vector3::new(20.0, 5.0, 12.0)),
+            (8, Vector3::new(40.0, 25.0, 12.0)),
+        ],
     }
 }
 
@@ -45,10 +48,17 @@ fn a_roof_corner_is_drawn_where_it_projects() {
     assert_eq!(frame.corners.len(), 1, "{:?}", frame.corners);
     let c = frame.corners[0];
     assert_eq!(c.landmark, 7);
-    let at = |du: f64, dv: f64| frame.image.get_pixel((c.u + du).round() as u32, (c.v + dv).round() as u32)[0];
+    let at = |du: f64, dv: f64| {
+        frame
+            .image
+            .get_pixel((c.u + du).round() as u32, (c.v + dv).round() as u32)[0]
+    };
     // Around the corner: sky (bright, ≈ 200 DN) on some sides, the wall on another.
     let samples = [at(-4.0, -4.0), at(4.0, -4.0), at(-4.0, 4.0), at(4.0, 4.0)];
-    let (lo, hi) = (*samples.iter().min().unwrap(), *samples.iter().max().unwrap());
+    let (lo, hi) = (
+        *samples.iter().min().unwrap(),
+        *samples.iter().max().unwrap(),
+    );
     assert!(hi > 150 && hi - lo > 20, "{samples:?}");
 }
 
@@ -65,10 +75,20 @@ fn a_drive_frame_renders_with_visible_corners() {
     let sun = sun_position(f.time_s, sc.origin.lat_deg, sc.origin.lon_deg).direction_in_enu();
     assert!(sun.z > 0.0, "the default drive is an afternoon");
     let total: usize = (0..sc.rig.len())
-        .map(|k| renderer.render(&scene, &f.world_from_rig, k, &sun, 9).unwrap().corners.len())
+        .map(|k| {
+            renderer
+                .render(&scene, &f.world_from_rig, k, &sun, 9)
+                .unwrap()
+                .corners
+                .len()
+        })
         .sum();
     assert!(total > 3, "{total} corners");
-    let a = renderer.render(&scene, &f.world_from_rig, 1, &sun, 9).unwrap();
-    let b = renderer.render(&scene, &f.world_from_rig, 1, &sun, 9).unwrap();
+    let a = renderer
+        .render(&scene, &f.world_from_rig, 1, &sun, 9)
+        .unwrap();
+    let b = renderer
+        .render(&scene, &f.world_from_rig, 1, &sun, 9)
+        .unwrap();
     assert_eq!(a.image, b.image);
 }

@@ -269,7 +269,8 @@ pub fn write_images(
                 return Ok(done);
             };
             if let Some((scene, day_renderer)) = &day {
-                let (rows, summary) = write_day_frame(drive, frame, scene, day_renderer, dir, options)?;
+                let (rows, summary) =
+                    write_day_frame(drive, frame, scene, day_renderer, dir, options)?;
                 progress(1);
                 done.push((index, rows, summary));
                 continue;
@@ -361,7 +362,11 @@ pub fn write_images(
 
 /// The image file extension of `options`.
 fn extension_of(options: &ImageOptions) -> &'static str {
-    if options.jpeg_quality.is_some() { "jpg" } else { "png" }
+    if options.jpeg_quality.is_some() {
+        "jpg"
+    } else {
+        "png"
+    }
 }
 
 /// Renders, encodes and writes the day images of every camera of `frame`; returns its truth
@@ -384,13 +389,16 @@ fn write_day_frame(
         else {
             continue;
         };
-        let path = dir.join(image_name_with_extension(frame.frame, camera, extension_of(options)));
-        let bytes = encode_image(&rendered.image, options.jpeg_quality).map_err(|e| {
-            DriveError::Write {
+        let path = dir.join(image_name_with_extension(
+            frame.frame,
+            camera,
+            extension_of(options),
+        ));
+        let bytes =
+            encode_image(&rendered.image, options.jpeg_quality).map_err(|e| DriveError::Write {
                 path: path.clone(),
                 source: std::io::Error::other(e),
-            }
-        })?;
+            })?;
         write_bytes(&path, &bytes)?;
         summary.images += 1;
         summary.bytes += bytes.len() as u64;
