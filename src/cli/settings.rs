@@ -77,6 +77,10 @@ pub struct SimulateSettings {
     pub origin: Option<Geodetic>,
     /// Also render every camera's night image of every frame.
     pub images: bool,
+    /// Night or day images.
+    pub time_of_day: super::simulate::TimeOfDayArg,
+    /// JPEG quality of the images (PNG when `None`).
+    pub jpeg_quality: Option<u8>,
     /// Threads rendering and encoding the images (at least 1).
     pub threads: usize,
     /// No progress bar.
@@ -268,6 +272,8 @@ impl From<SimulateArgs> for SimulateSettings {
             calibration: a.calibration,
             origin: a.origin,
             images: a.images,
+            time_of_day: a.time_of_day,
+            jpeg_quality: a.jpeg_quality,
             threads: thread_count(a.threads),
             quiet: a.quiet,
         }

@@ -15,6 +15,15 @@ pub enum PresetArg {
     Short,
 }
 
+/// The times of day of `--time-of-day`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum TimeOfDayArg {
+    /// Street lamps on a dark background.
+    Night,
+    /// Buildings, streets and clutter in sunlight.
+    Day,
+}
+
 /// Arguments of `vgps simulate`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct SimulateArgs {
@@ -40,6 +49,13 @@ pub struct SimulateArgs {
     /// columns in `frames.csv`, sidecar `images_truth.csv`).
     #[arg(long)]
     pub images: bool,
+    /// What `--images` shows: `night` (street lamps) or `day` (buildings lit by the sun of
+    /// the drive's time and place; the truth is the visible corner landmarks).
+    #[arg(long, value_enum, default_value = "night")]
+    pub time_of_day: TimeOfDayArg,
+    /// Write the images as JPEG at this quality (1–100) instead of PNG.
+    #[arg(long, value_parser = clap::value_parser!(u8).range(1..=100))]
+    pub jpeg_quality: Option<u8>,
     /// Threads rendering and encoding the images (default: all cores; the files do not
     /// depend on it).
     #[arg(long)]
@@ -117,7 +133,7 @@ pub fn run(settings: &SimulateSettings, out: &mut dyn Write) -> Result<(), CliEr
     if let Some(s) = images {
         writeln!(
             out,
-            "{}: {} images, {:.1} MB ({} lamp, {} transient, {} clutter spots)",
+            "{}: {} images, {:.1} MB ({} lamp, {} transient, {} clutter spots, {} corners)",
             settings
                 .out
                 .join(vgps_sim::simulate::images::IMAGES_DIR)
@@ -126,7 +142,8 @@ pub fn run(settings: &SimulateSettings, out: &mut dyn Write) -> Result<(), CliEr
             s.bytes as f64 / 1e6,
             s.lamps,
             s.transients,
-            s.clutter
+            s.clutter,
+            s.corners
         )?;
     }
     Ok(())
@@ -157,7 +174,14 @@ fn write_images(
     let result = vgps_sim::simulate::images::write_images(
         drive,
         &settings.out,
-        &vgps_sim::simulate::images::ImageOptions::default(),
+        &vgps_sim::simulate::images::ImageOptions {
+            time_of_day: match settings.time_of_day {
+                TimeOfDayArg::Night => vgps_sim::simulate::images::TimeOfDay::Night,
+                TimeOfDayArg::Day => vgps_sim::simulate::images::TimeOfDay::Day,
+            },
+            jpeg_quality: settings.jpeg_quality,
+            ..vgps_sim::simulate::images::ImageOptions::default()
+        },
         threads,
         &progress,
     )

@@ -426,7 +426,7 @@ pub(crate) fn splitmix64(x: u64) -> u64 {
 /// An approximately standard normal sample from a hash: the sum of four 10-bit uniforms
 /// (Irwin–Hall), centred and scaled to unit variance (the low 40 bits; the high 24 bits are
 /// left for the dither).
-fn approx_normal(h: u64) -> f64 {
+pub(crate) fn approx_normal(h: u64) -> f64 {
     const SCALE: f64 = 1024.0;
     let sum = (h & 0x3ff) + ((h >> 10) & 0x3ff) + ((h >> 20) & 0x3ff) + ((h >> 30) & 0x3ff);
     // Four uniforms on [0, 1): mean 2, variance 4/12.

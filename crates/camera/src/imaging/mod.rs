@@ -13,6 +13,8 @@
 //! - [`street`]: the lamp detector for real night streets — bright cores against their
 //!   local background, one detection per bloomed lamp, windows, reflections, vehicle lights
 //!   and lens ghosts labelled ([`StreetLampDetector`]).
+//! - [`vertex`]: building corners by day, as the intersection of sub-pixel edges
+//!   ([`VertexDetector`]).
 //!
 //! # Conventions
 //! Pixels `(u, v)` = (column, row), integer coordinates are pixel centres, `(0, 0)` is the
@@ -46,6 +48,7 @@ pub mod detect;
 mod detection;
 pub mod formats;
 pub mod street;
+pub mod vertex;
 
 pub use decode::{DecodeLimits, check_dimensions, decode_png, encode_png, read_png};
 pub use detect::{
@@ -54,6 +57,7 @@ pub use detect::{
 pub use detection::PixelDetection;
 pub use formats::{ImageFormat, decode_image, decode_image_named, read_image};
 pub use street::{LampClass, StreetDetection, StreetDetections, StreetLampDetector};
+pub use vertex::{VertexConfig, VertexDetection, VertexDetector};
 
 use std::path::PathBuf;
 use thiserror::Error;

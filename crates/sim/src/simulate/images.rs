@@ -13,8 +13,15 @@
 //! Files: `images/FFFFFF_K.png` ([`image_name`]), the `image_0 … image_5` columns of
 //! `frames.csv`, and the sidecar `images_truth.csv` (`frame,camera,kind,landmark,u,v,
 //! range_m,peak_dn,clipped`: every drawn spot, `kind` = `lamp`, `transient` or `clutter`).
+//!
+//! By day ([`TimeOfDay::Day`]) the frames are rendered by [`crate::day`] instead: buildings
+//! lit by the sun of the frame's time at the scenario's origin, optionally written as JPEG
+//! (`images/FFFFFF_K.jpg`, [`ImageOptions::jpeg_quality`]); the truth rows are the visible
+//! corner landmarks (`kind` = `corner`, `peak_dn` empty, `clipped` = closer than
+//! [`crate::day::render::BORDER_PX`] to the border).
 
 use super::{SimFrame, SimulatedDrive, Source};
+use crate::day::{DayOptions, DayRenderer, DayScene, sun_position};
 use crate::render::{LightSource, RenderOptions, RenderedFrame, Renderer, SpotKind};
 use rand::{RngExt, SeedableRng};
 use std::fmt::Write as _;
@@ -51,6 +58,22 @@ pub struct ImageOptions {
     pub transient_radius_m: f64,
     /// Range of a transient light's relative intensity, drawn uniformly per light.
     pub transient_intensity: (f64, f64),
+    /// Night (lamps) or day (buildings in sunlight).
+    pub time_of_day: TimeOfDay,
+    /// The day renderer's parameters.
+    pub day: DayOptions,
+    /// Write JPEG at this quality (1–100) instead of PNG.
+    pub jpeg_quality: Option<u8>,
+}
+
+/// What the images show.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TimeOfDay {
+    /// Street lamps on a dark background ([`crate::render`]).
+    #[default]
+    Night,
+    /// Buildings, streets and clutter in daylight ([`crate::day`]).
+    Day,
 }
 
 impl Default for ImageOptions {
@@ -64,6 +87,9 @@ impl Default for ImageOptions {
             lamp_intensity: 1.0,
             transient_radius_m: DEFAULT_TRANSIENT_RADIUS_M,
             transient_intensity: (0.3, 1.0),
+            time_of_day: TimeOfDay::Night,
+            day: DayOptions::default(),
+            jpeg_quality: None,
         }
     }
 }
@@ -81,12 +107,36 @@ pub struct ImagesSummary {
     pub transients: usize,
     /// Clutter spots drawn.
     pub clutter: usize,
+    /// Visible corner landmarks (day images).
+    pub corners: usize,
 }
 
 /// The image file of camera `camera` at frame `frame`, relative to the drive directory
 /// (`images/000123_2.png`).
 pub fn image_name(frame: u64, camera: usize) -> String {
-    format!("{IMAGES_DIR}/{frame:06}_{camera}.png")
+    image_name_with_extension(frame, camera, "png")
+}
+
+/// [`image_name`] with another extension (`jpg`).
+pub fn image_name_with_extension(frame: u64, camera: usize, extension: &str) -> String {
+    format!("{IMAGES_DIR}/{frame:06}_{camera}.{extension}")
+}
+
+/// Encodes an image as PNG, or as JPEG at `quality` (clamped to 1–100).
+///
+/// # Errors
+/// The encoder's message.
+pub fn encode_image(image: &image::GrayImage, jpeg_quality: Option<u8>) -> Result<Vec<u8>, String> {
+    match jpeg_quality {
+        None => encode_png(image).map_err(|e| e.to_string()),
+        Some(q) => {
+            let mut bytes = Vec::new();
+            image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, q.clamp(1, 100))
+                .encode_image(image)
+                .map_err(|e| e.to_string())?;
+            Ok(bytes)
+        }
+    }
 }
 
 /// The render seed of camera `camera` at frame `frame` for the scenario seed `seed`.
@@ -201,6 +251,13 @@ pub fn write_images(
         source,
     })?;
     let renderer = Renderer::new(options.render.clone());
+    let extension = extension_of(options);
+    let day = (options.time_of_day == TimeOfDay::Day).then(|| {
+        (
+            DayScene::from_world(&drive.world, drive.scenario.block_m, drive.scenario.seed),
+            DayRenderer::new(options.day.clone(), &drive.scenario.rig),
+        )
+    });
     let next = AtomicUsize::new(0);
     let threads = threads.clamp(1, drive.frames.len().max(1));
     type FrameOutput = (usize, String, ImagesSummary);
@@ -211,15 +268,22 @@ pub fn write_images(
             let Some(frame) = drive.frames.get(index) else {
                 return Ok(done);
             };
+            if let Some((scene, day_renderer)) = &day {
+                let (rows, summary) =
+                    write_day_frame(drive, frame, scene, day_renderer, dir, options)?;
+                progress(1);
+                done.push((index, rows, summary));
+                continue;
+            }
             let mut rows = String::new();
             let mut summary = ImagesSummary::default();
             for (camera, (rendered, sources)) in render_frame(drive, frame, &renderer, options)
                 .into_iter()
                 .enumerate()
             {
-                let path = dir.join(image_name(frame.frame, camera));
-                let bytes =
-                    encode_png(&rendered.image).map_err(|e| werr(path.clone(), e.to_string()))?;
+                let path = dir.join(image_name_with_extension(frame.frame, camera, extension));
+                let bytes = encode_image(&rendered.image, options.jpeg_quality)
+                    .map_err(|e| werr(path.clone(), e))?;
                 write_bytes(&path, &bytes)?;
                 summary.images += 1;
                 summary.bytes += bytes.len() as u64;
@@ -278,6 +342,7 @@ pub fn write_images(
         total.lamps += s.lamps;
         total.transients += s.transients;
         total.clutter += s.clutter;
+        total.corners += s.corners;
     }
     write_text(&dir.join(IMAGES_TRUTH_NAME), &truth)?;
     let frames: Vec<FrameRecord> = drive
@@ -286,11 +351,72 @@ pub fn write_images(
         .map(|f| FrameRecord {
             frame: f.frame,
             time_s: f.time_s,
-            images: (0..cameras).map(|k| Some(image_name(f.frame, k))).collect(),
+            images: (0..cameras)
+                .map(|k| Some(image_name_with_extension(f.frame, k, extension)))
+                .collect(),
         })
         .collect();
     write_text(&dir.join("frames.csv"), &frames_to_csv(&frames))?;
     Ok(total)
+}
+
+/// The image file extension of `options`.
+fn extension_of(options: &ImageOptions) -> &'static str {
+    if options.jpeg_quality.is_some() {
+        "jpg"
+    } else {
+        "png"
+    }
+}
+
+/// Renders, encodes and writes the day images of every camera of `frame`; returns its truth
+/// rows and counts.
+fn write_day_frame(
+    drive: &SimulatedDrive,
+    frame: &SimFrame,
+    scene: &DayScene,
+    renderer: &DayRenderer,
+    dir: &Path,
+    options: &ImageOptions,
+) -> Result<(String, ImagesSummary), DriveError> {
+    let origin = &drive.scenario.origin;
+    let sun = sun_position(frame.time_s, origin.lat_deg, origin.lon_deg).direction_in_enu();
+    let mut rows = String::new();
+    let mut summary = ImagesSummary::default();
+    for camera in 0..drive.scenario.rig.len() {
+        let seed = image_seed(drive.scenario.seed, frame.frame, camera);
+        let Some(rendered) = renderer.render(scene, &frame.world_from_rig, camera, &sun, seed)
+        else {
+            continue;
+        };
+        let path = dir.join(image_name_with_extension(
+            frame.frame,
+            camera,
+            extension_of(options),
+        ));
+        let bytes =
+            encode_image(&rendered.image, options.jpeg_quality).map_err(|e| DriveError::Write {
+                path: path.clone(),
+                source: std::io::Error::other(e),
+            })?;
+        write_bytes(&path, &bytes)?;
+        summary.images += 1;
+        summary.bytes += bytes.len() as u64;
+        for c in &rendered.corners {
+            summary.corners += 1;
+            let _ = writeln!(
+                rows,
+                "{},{camera},corner,{},{:.3},{:.3},{:.2},,{}",
+                frame.frame,
+                drive.world.landmarks[c.landmark].id,
+                c.u,
+                c.v,
+                c.range_m,
+                c.near_border
+            );
+        }
+    }
+    Ok((rows, summary))
 }
 
 /// Writes bytes atomically (temporary file in the same directory, then a rename).

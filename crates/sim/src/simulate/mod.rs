@@ -35,8 +35,8 @@ mod world;
 
 pub use route::{Route, TURN_RADIUS_M};
 pub use world::{
-    Building, CityParams, KERB_M, LAMP_ARM_M, LandmarkClass, SETBACK_M, Source, VisiblePoint,
-    World, WorldLandmark, observe, project,
+    Building, CORNER_CLEARANCE_M, CityParams, KERB_M, LAMP_ARM_M, LandmarkClass, SETBACK_M, Source,
+    VisiblePoint, World, WorldLandmark, observe, project,
 };
 
 use nalgebra::{Rotation3, Translation3, UnitQuaternion, Vector2, Vector3};

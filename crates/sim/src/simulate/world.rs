@@ -14,7 +14,7 @@ pub const KERB_M: f64 = 7.5;
 pub const LAMP_ARM_M: f64 = 1.2;
 /// Gap kept between a corner landmark and its building's box, metres (so that the box does
 /// not hide its own corner).
-const CORNER_CLEARANCE_M: f64 = 0.05;
+pub const CORNER_CLEARANCE_M: f64 = 0.05;
 /// Probability that a lot holds no building (a parking lot).
 const EMPTY_LOT_PROBABILITY: f64 = 0.1;
 /// Probability that a street-facing building corner also has an awning corner (3–4.5 m).

@@ -1,0 +1,613 @@
+//! The vertex detector: building corners (roof, awning and facade corners) as the
+//! intersection of two or three straight edges fitted at sub-pixel precision.
+//!
+//! # Method
+//! 1. **Candidates**: the Shi–Tomasi response (the smaller eigenvalue of the structure
+//!    tensor of Sobel gradients summed over a 5 × 5 window), local maxima within
+//!    [`VertexConfig::nms_radius`] above [`VertexConfig::min_response`], the strongest
+//!    [`VertexConfig::max_candidates`] kept.
+//! 2. **Edges**: in a patch of radius [`VertexConfig::patch_radius`] around a candidate, the
+//!    pixels whose gradient exceeds [`VertexConfig::min_edge_gradient`] vote, weighted by the
+//!    squared gradient, in a histogram of gradient orientation (mod π); its two or three
+//!    strongest peaks at least [`VertexConfig::min_angle_deg`] apart are the edge directions.
+//! 3. **Lines**: each edge is the weighted total-least-squares line of the pixels of its
+//!    orientation (± [`ORIENTATION_TOLERANCE_DEG`]) within [`BAND_PX`] of the current line and
+//!    outside [`VertexConfig::exclusion_px`] of the current corner (where blur rounds it). The
+//!    squared-gradient weights are symmetric about a blurred step's centre, so the fitted line
+//!    is the edge's sub-pixel centre line. With a camera model the pixels are first mapped to
+//!    the gnomonic plane tangent at the candidate's bearing (a *locally rectified patch*,
+//!    [`CameraModel::try_bearing`]), where the image of a straight 3-D edge is straight, and
+//!    the corner is mapped back with [`CameraModel::try_pixel`].
+//! 4. **Corner**: the least-squares intersection of the lines; lines and corner are refitted
+//!    [`REFINEMENT_PASSES`] times. A corner that moves more than
+//!    [`VertexConfig::max_shift_px`] from its candidate, or whose lines are too close to
+//!    parallel, is dropped; of two corners closer than [`DUPLICATE_PX`], the stronger is kept.
+//!
+//! The strength is the weakest edge's mean gradient (DN per pixel).
+
+use super::detect::Mask;
+use crate::calibration::{Camera, CameraModel, Pixel};
+use image::GrayImage;
+use nalgebra::{Matrix2, Vector2, Vector3};
+
+/// Pixels of an edge's orientation are within this angle of its histogram peak (degrees).
+pub const ORIENTATION_TOLERANCE_DEG: f64 = 12.0;
+/// Half-width of the band around a line in which its pixels are taken (pixels).
+pub const BAND_PX: f64 = 2.5;
+/// Refinement passes of lines and corner.
+pub const REFINEMENT_PASSES: usize = 3;
+/// Two corners closer than this are one (pixels).
+pub const DUPLICATE_PX: f64 = 1.5;
+/// Bins of the orientation histogram over [0, π).
+const ORIENTATION_BINS: usize = 36;
+/// A histogram peak is an edge if it reaches this share of the strongest peak.
+const MIN_PEAK_SHARE: f64 = 0.2;
+/// Half-size of the structure tensor's window (pixels).
+const TENSOR_RADIUS: usize = 2;
+
+/// Parameters of the [`VertexDetector`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct VertexConfig {
+    /// Smallest Shi–Tomasi response of a candidate (mean over the window, (DN/px)²).
+    pub min_response: f32,
+    /// Largest number of candidates per image (the strongest).
+    pub max_candidates: usize,
+    /// Radius of the non-maximum suppression of candidates (pixels).
+    pub nms_radius: usize,
+    /// Radius of the patch in which the edges are fitted (pixels).
+    pub patch_radius: usize,
+    /// Smallest gradient of an edge pixel (DN per pixel).
+    pub min_edge_gradient: f32,
+    /// Edge pixels closer than this to the corner are not fitted (pixels).
+    pub exclusion_px: f64,
+    /// Largest distance between a candidate and its corner (pixels).
+    pub max_shift_px: f64,
+    /// Smallest angle between two edges of a corner (degrees).
+    pub min_angle_deg: f64,
+    /// Fewest pixels of a fitted edge.
+    pub min_edge_pixels: usize,
+}
+
+impl Default for VertexConfig {
+    fn default() -> Self {
+        Self {
+            min_response: 40.0,
+            max_candidates: 1000,
+            nms_radius: 3,
+            patch_radius: 9,
+            min_edge_gradient: 6.0,
+            exclusion_px: 1.5,
+            max_shift_px: 2.5,
+            min_angle_deg: 25.0,
+            min_edge_pixels: 6,
+        }
+    }
+}
+
+/// A corner found in an image.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VertexDetection {
+    /// Column (pixel centres at integers).
+    pub u: f64,
+    /// Row.
+    pub v: f64,
+    /// The weakest edge's mean gradient (DN per pixel).
+    pub strength: f64,
+    /// Number of edges meeting at the corner (2 or 3).
+    pub edges: u8,
+    /// RMS distance of the fitted lines from the corner (pixels).
+    pub residual_px: f64,
+}
+
+/// The vertex detector (see the module documentation).
+#[derive(Clone, Debug, Default)]
+pub struct VertexDetector {
+    /// Its parameters.
+    pub config: VertexConfig,
+}
+
+/// An edge pixel of a patch: position (rectified plane or image), weight, orientation.
+#[derive(Clone, Copy)]
+struct EdgePixel {
+    x: Vector2<f64>,
+    weight: f64,
+    orientation: f64,
+    gradient: f64,
+}
+
+/// A line `n·x = d` with `|n| = 1`, its weight sum, pixel count and mean gradient.
+#[derive(Clone, Copy)]
+struct Line {
+    n: Vector2<f64>,
+    d: f64,
+    count: usize,
+    mean_gradient: f64,
+}
+
+/// Maps between image pixels and a locally rectified (gnomonic) plane in pixel units.
+struct Rectifier<'a> {
+    camera: &'a Camera,
+    b0: Vector3<f64>,
+    e1: Vector3<f64>,
+    e2: Vector3<f64>,
+    scale: f64,
+}
+
+impl<'a> Rectifier<'a> {
+    fn new(camera: &'a Camera, centre: &Pixel) -> Option<Self> {
+        let b0 = camera.try_bearing(centre)?;
+        let b1 = camera.try_bearing(&(centre + Vector2::new(1.0, 0.0)))?;
+        let angle = b0.cross(&b1).norm().atan2(b0.dot(&b1));
+        if !(angle > 0.0) {
+            return None;
+        }
+        let helper = if b0.x.abs() < 0.9 {
+            Vector3::x()
+        } else {
+            Vector3::y()
+        };
+        let e2 = b0.cross(&helper).normalize();
+        let e1 = e2.cross(&b0);
+        Some(Self {
+            camera,
+            b0,
+            e1,
+            e2,
+            scale: 1.0 / angle,
+        })
+    }
+
+    fn to_plane(&self, p: &Pixel) -> Option<Vector2<f64>> {
+        let b = self.camera.try_bearing(p)?;
+        let z = b.dot(&self.b0);
+        (z > 1e-3).then(|| Vector2::new(b.dot(&self.e1), b.dot(&self.e2)) * (self.scale / z))
+    }
+
+    fn to_pixel(&self, x: &Vector2<f64>) -> Option<Pixel> {
+        let b = self.b0 + (self.e1 * x.x + self.e2 * x.y) / self.scale;
+        self.camera.try_pixel(&b.normalize())
+    }
+}
+
+impl VertexDetector {
+    /// A detector with `config`.
+    pub fn new(config: VertexConfig) -> Self {
+        Self { config }
+    }
+
+    /// The corners of `image`. With `camera`, edges are fitted in a locally rectified patch
+    /// (straight 3-D edges stay straight under any distortion); without, in the image.
+    /// Masked pixels (`mask`, same size as the image) give no candidate. Never panics; an
+    /// image smaller than a patch gives no corner.
+    pub fn detect(
+        &self,
+        image: &GrayImage,
+        camera: Option<&Camera>,
+        mask: Option<&Mask>,
+    ) -> Vec<VertexDetection> {
+        let c = &self.config;
+        let (w, h) = (image.width() as usize, image.height() as usize);
+        let margin = c.patch_radius + 2;
+        if w <= 2 * margin || h <= 2 * margin {
+            return Vec::new();
+        }
+        let (gx, gy) = sobel(image.as_raw(), w, h);
+        let response = shi_tomasi(&gx, &gy, w, h);
+        let mut candidates = Vec::new();
+        let r = c.nms_radius as isize;
+        for v in margin..h - margin {
+            for u in margin..w - margin {
+                let s = response[v * w + u];
+                if !(s >= c.min_response) {
+                    continue;
+                }
+                let mut is_max = true;
+                'nms: for dv in -r..=r {
+                    for du in -r..=r {
+                        let j = ((v as isize + dv) as usize) * w + (u as isize + du) as usize;
+                        let o = response[j];
+                        if o > s || (o == s && (dv, du) < (0, 0)) {
+                            is_max = false;
+                            break 'nms;
+                        }
+                    }
+                }
+                if is_max && !mask.is_some_and(|m| m.is_masked(u as u32, v as u32)) {
+                    candidates.push((s, u, v));
+                }
+            }
+        }
+        candidates.sort_by(|a, b| b.0.total_cmp(&a.0));
+        candidates.truncate(c.max_candidates);
+        let mut found: Vec<VertexDetection> = candidates
+            .iter()
+            .filter_map(|&(_, u, v)| self.refine(&gx, &gy, w, u, v, camera))
+            .collect();
+        found.sort_by(|a, b| b.strength.total_cmp(&a.strength));
+        let mut kept: Vec<VertexDetection> = Vec::with_capacity(found.len());
+        for d in found {
+            if kept
+                .iter()
+                .all(|k| (k.u - d.u).hypot(k.v - d.v) >= DUPLICATE_PX)
+            {
+                kept.push(d);
+            }
+        }
+        kept
+    }
+
+    /// The corner near the candidate `(u, v)`, if two or three edges meet there.
+    fn refine(
+        &self,
+        gx: &[f32],
+        gy: &[f32],
+        w: usize,
+        u: usize,
+        v: usize,
+        camera: Option<&Camera>,
+    ) -> Option<VertexDetection> {
+        let c = &self.config;
+        let centre = Pixel::new(u as f64, v as f64);
+        let rectifier = match camera {
+            Some(cam) => Some(Rectifier::new(cam, &centre)?),
+            None => None,
+        };
+        let to_plane = |p: &Pixel| match &rectifier {
+            Some(r) => r.to_plane(p),
+            None => Some(*p),
+        };
+        let pr = c.patch_radius as isize;
+        let mut pixels = Vec::with_capacity((2 * c.patch_radius + 1).pow(2));
+        let mut histogram = [0.0f64; ORIENTATION_BINS];
+        for dv in -pr..=pr {
+            for du in -pr..=pr {
+                let (uu, vv) = ((u as isize + du) as usize, (v as isize + dv) as usize);
+                let j = vv * w + uu;
+                let (x, y) = (gx[j] as f64, gy[j] as f64);
+                let g = x.hypot(y);
+                if !(g >= c.min_edge_gradient as f64) {
+                    continue;
+                }
+                let orientation = y.atan2(x).rem_euclid(std::f64::consts::PI);
+                let Some(pos) = to_plane(&Pixel::new(uu as f64, vv as f64)) else {
+                    continue;
+                };
+                let weight = g * g;
+                let bin = ((orientation / std::f64::consts::PI * ORIENTATION_BINS as f64) as usize)
+                    .min(ORIENTATION_BINS - 1);
+                histogram[bin] += weight;
+                pixels.push(EdgePixel {
+                    x: pos,
+                    weight,
+                    orientation,
+                    gradient: g,
+                });
+            }
+        }
+        let directions = histogram_peaks(&histogram, c.min_angle_deg.to_radians());
+        if directions.len() < 2 {
+            return None;
+        }
+        let start = to_plane(&centre)?;
+        let tolerance = ORIENTATION_TOLERANCE_DEG.to_radians();
+        // Initial lines: through the candidate, normal along each peak's gradient direction.
+        let mut lines: Vec<Line> = directions
+            .iter()
+            .map(|&theta| {
+                let n = Vector2::new(theta.cos(), theta.sin());
+                Line {
+                    n,
+                    d: n.dot(&start),
+                    count: 0,
+                    mean_gradient: 0.0,
+                }
+            })
+            .collect();
+        let mut corner = start;
+        for pass in 0..=REFINEMENT_PASSES {
+            let band = if pass == 0 { BAND_PX + 1.0 } else { BAND_PX };
+            let mut refitted = Vec::with_capacity(lines.len());
+            for line in &lines {
+                let theta = line.n.y.atan2(line.n.x).rem_euclid(std::f64::consts::PI);
+                let selected = pixels.iter().filter(|p| {
+                    angle_mod_pi(p.orientation - theta) <= tolerance
+                        && (line.n.dot(&p.x) - line.d).abs() <= band
+                        && (p.x - corner).norm() >= c.exclusion_px
+                });
+                if let Some(fit) = fit_line(selected) {
+                    if fit.count >= c.min_edge_pixels {
+                        refitted.push(fit);
+                    }
+                }
+            }
+            if refitted.len() < 2 {
+                return None;
+            }
+            lines = refitted;
+            corner = intersect(&lines, c.min_angle_deg.to_radians())?;
+            if (corner - start).norm() > c.max_shift_px + BAND_PX {
+                return None;
+            }
+        }
+        let pixel = match &rectifier {
+            Some(r) => r.to_pixel(&corner)?,
+            None => corner,
+        };
+        if !((pixel - centre).norm() <= c.max_shift_px) {
+            return None;
+        }
+        let residual_px = (lines
+            .iter()
+            .map(|l| (l.n.dot(&corner) - l.d).powi(2))
+            .sum::<f64>()
+            / lines.len() as f64)
+            .sqrt();
+        let strength = lines
+            .iter()
+            .map(|l| l.mean_gradient)
+            .fold(f64::INFINITY, f64::min);
+        Some(VertexDetection {
+            u: pixel.x,
+            v: pixel.y,
+            strength,
+            edges: lines.len() as u8,
+            residual_px,
+        })
+    }
+}
+
+/// The distance between two orientations modulo π (radians, 0 … π/2).
+fn angle_mod_pi(a: f64) -> f64 {
+    let a = a.rem_euclid(std::f64::consts::PI);
+    a.min(std::f64::consts::PI - a)
+}
+
+/// Up to three peaks of the circular orientation histogram (bin centres refined by a
+/// parabola), at least `min_separation` apart, each ≥ [`MIN_PEAK_SHARE`] of the strongest.
+fn histogram_peaks(histogram: &[f64; ORIENTATION_BINS], min_separation: f64) -> Vec<f64> {
+    let n = ORIENTATION_BINS;
+    let smooth: Vec<f64> = (0..n)
+        .map(|i| {
+            0.25 * histogram[(i + n - 1) % n] + 0.5 * histogram[i] + 0.25 * histogram[(i + 1) % n]
+        })
+        .collect();
+    let mut peaks: Vec<(f64, f64)> = (0..n)
+        .filter(|&i| {
+            let (l, r) = (smooth[(i + n - 1) % n], smooth[(i + 1) % n]);
+            smooth[i] > l && smooth[i] >= r && smooth[i] > 0.0
+        })
+        .map(|i| {
+            let (l, m, r) = (smooth[(i + n - 1) % n], smooth[i], smooth[(i + 1) % n]);
+            let denom = l - 2.0 * m + r;
+            let offset = if denom < 0.0 {
+                0.5 * (l - r) / denom
+            } else {
+                0.0
+            };
+            let angle = (i as f64 + 0.5 + offset) * std::f64::consts::PI / n as f64;
+            (m, angle)
+        })
+        .collect();
+    peaks.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let strongest = peaks.first().map_or(0.0, |p| p.0);
+    let mut chosen: Vec<f64> = Vec::new();
+    for (m, angle) in peaks {
+        if m < MIN_PEAK_SHARE * strongest || chosen.len() == 3 {
+            break;
+        }
+        if chosen
+            .iter()
+            .all(|&a| angle_mod_pi(a - angle) >= min_separation)
+        {
+            chosen.push(angle);
+        }
+    }
+    chosen
+}
+
+/// The weighted total-least-squares line of the pixels.
+fn fit_line<'a>(pixels: impl Iterator<Item = &'a EdgePixel>) -> Option<Line> {
+    let (mut sw, mut sx, mut sg, mut count) = (0.0, Vector2::zeros(), 0.0, 0usize);
+    let collected: Vec<&EdgePixel> = pixels.collect();
+    for p in &collected {
+        sw += p.weight;
+        sx += p.x * p.weight;
+        sg += p.gradient;
+        count += 1;
+    }
+    if !(sw > 0.0) {
+        return None;
+    }
+    let mean = sx / sw;
+    let mut scatter = Matrix2::zeros();
+    for p in &collected {
+        let d = p.x - mean;
+        scatter += d * d.transpose() * p.weight;
+    }
+    let eig = scatter.symmetric_eigen();
+    let k = if eig.eigenvalues[0] < eig.eigenvalues[1] {
+        0
+    } else {
+        1
+    };
+    let n: Vector2<f64> = eig.eigenvectors.column(k).into();
+    let n = n.try_normalize(1e-12)?;
+    Some(Line {
+        n,
+        d: n.dot(&mean),
+        count,
+        mean_gradient: sg / count as f64,
+    })
+}
+
+/// The least-squares intersection of lines; `None` when they are closer to parallel than
+/// `min_angle`.
+fn intersect(lines: &[Line], min_angle: f64) -> Option<Vector2<f64>> {
+    let mut a = Matrix2::zeros();
+    let mut b = Vector2::zeros();
+    for l in lines {
+        a += l.n * l.n.transpose();
+        b += l.n * l.d;
+    }
+    let eig = a.symmetric_eigen();
+    let smallest = eig.eigenvalues.min();
+    // Two unit normals at angle φ give a smallest eigenvalue of 1 − cos φ.
+    if !(smallest >= 1.0 - min_angle.cos()) {
+        return None;
+    }
+    let x = a.try_inverse()? * b;
+    x.iter().all(|v| v.is_finite()).then_some(x)
+}
+
+/// Sobel gradients (DN per pixel); zero on the one-pixel border.
+fn sobel(src: &[u8], w: usize, h: usize) -> (Vec<f32>, Vec<f32>) {
+    let mut gx = vec![0f32; w * h];
+    let mut gy = vec![0f32; w * h];
+    for v in 1..h - 1 {
+        for u in 1..w - 1 {
+            let p = |du: isize, dv: isize| {
+                src[((v as isize + dv) as usize) * w + (u as isize + du) as usize] as f32
+            };
+            let i = v * w + u;
+            gx[i] = ((p(1, -1) + 2.0 * p(1, 0) + p(1, 1))
+                - (p(-1, -1) + 2.0 * p(-1, 0) + p(-1, 1)))
+                / 8.0;
+            gy[i] = ((p(-1, 1) + 2.0 * p(0, 1) + p(1, 1))
+                - (p(-1, -1) + 2.0 * p(0, -1) + p(1, -1)))
+                / 8.0;
+        }
+    }
+    (gx, gy)
+}
+
+/// The Shi–Tomasi response (smaller eigenvalue of the mean structure tensor over a
+/// (2·[`TENSOR_RADIUS`] + 1)² window).
+fn shi_tomasi(gx: &[f32], gy: &[f32], w: usize, h: usize) -> Vec<f32> {
+    let products: [Vec<f32>; 3] = [
+        gx.iter().map(|x| x * x).collect(),
+        gy.iter().map(|y| y * y).collect(),
+        gx.iter().zip(gy).map(|(x, y)| x * y).collect(),
+    ];
+    let summed: Vec<Vec<f32>> = products.iter().map(|p| box_sum(p, w, h)).collect();
+    let count = ((2 * TENSOR_RADIUS + 1) * (2 * TENSOR_RADIUS + 1)) as f32;
+    (0..w * h)
+        .map(|i| {
+            let (a, c, b) = (
+                summed[0][i] / count,
+                summed[1][i] / count,
+                summed[2][i] / count,
+            );
+            let half = 0.5 * (a + c);
+            half - (0.25 * (a - c) * (a - c) + b * b).sqrt()
+        })
+        .collect()
+}
+
+/// Box sum over a (2·[`TENSOR_RADIUS`] + 1)² window, borders clamped.
+fn box_sum(src: &[f32], w: usize, h: usize) -> Vec<f32> {
+    let r = TENSOR_RADIUS as isize;
+    let mut tmp = vec![0f32; w * h];
+    for v in 0..h {
+        for u in 0..w {
+            let mut s = 0.0;
+            for d in -r..=r {
+                s += src[v * w + (u as isize + d).clamp(0, w as isize - 1) as usize];
+            }
+            tmp[v * w + u] = s;
+        }
+    }
+    let mut out = vec![0f32; w * h];
+    for v in 0..h {
+        for d in -r..=r {
+            let vv = (v as isize + d).clamp(0, h as isize - 1) as usize;
+            for u in 0..w {
+                out[v * w + u] += tmp[vv * w + u];
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An anti-aliased wedge: the region `n1·x ≥ d1 ∧ n2·x ≥ d2` at `high` DN on `low` DN,
+    /// integrated over each pixel with 8 × 8 sub-samples.
+    fn wedge(corner: Vector2<f64>, a1: f64, a2: f64, low: f64, high: f64) -> GrayImage {
+        let (w, h) = (64u32, 64u32);
+        // Edge directions a1, a2 leaving the corner; the wedge is between them.
+        let n1 = Vector2::new(-a1.sin(), a1.cos());
+        let n2 = Vector2::new(a2.sin(), -a2.cos());
+        GrayImage::from_fn(w, h, |u, v| {
+            let mut inside = 0;
+            for sy in 0..8 {
+                for sx in 0..8 {
+                    let p = Vector2::new(
+                        u as f64 + (sx as f64 + 0.5) / 8.0 - 0.5,
+                        v as f64 + (sy as f64 + 0.5) / 8.0 - 0.5,
+                    ) - corner;
+                    if n1.dot(&p) >= 0.0 && n2.dot(&p) >= 0.0 {
+                        inside += 1;
+                    }
+                }
+            }
+            let value = low + (high - low) * inside as f64 / 64.0;
+            image::Luma([value.round() as u8])
+        })
+    }
+
+    #[test]
+    fn a_synthetic_corner_is_found_to_a_tenth_of_a_pixel() {
+        for (k, (cu, cv, a1, a2)) in [
+            (31.3, 30.7, 0.2, 1.9),
+            (32.45, 31.05, -0.6, 0.9),
+            (30.8, 33.6, 1.3, 3.9),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let image = wedge(Vector2::new(cu, cv), a1, a2, 60.0, 190.0);
+            let found = VertexDetector::default().detect(&image, None, None);
+            let best = found
+                .iter()
+                .min_by(|a, b| {
+                    (a.u - cu)
+                        .hypot(a.v - cv)
+                        .total_cmp(&(b.u - cu).hypot(b.v - cv))
+                })
+                .unwrap_or_else(|| panic!("case {k}: no corner"));
+            let error = (best.u - cu).hypot(best.v - cv);
+            assert!(error < 0.1, "case {k}: error {error} px, {best:?}");
+            assert!(best.edges >= 2 && best.strength > 10.0);
+        }
+    }
+
+    #[test]
+    fn a_straight_edge_and_a_flat_image_give_no_corner() {
+        let flat = GrayImage::from_pixel(64, 64, image::Luma([100]));
+        assert!(
+            VertexDetector::default()
+                .detect(&flat, None, None)
+                .is_empty()
+        );
+        let edge = GrayImage::from_fn(64, 64, |u, v| {
+            image::Luma([if (u as f64) * 0.9 + (v as f64) * 0.3 > 35.0 {
+                180
+            } else {
+                50
+            }])
+        });
+        assert!(
+            VertexDetector::default()
+                .detect(&edge, None, None)
+                .is_empty()
+        );
+        let tiny = GrayImage::new(5, 5);
+        assert!(
+            VertexDetector::default()
+                .detect(&tiny, None, None)
+                .is_empty()
+        );
+    }
+}
