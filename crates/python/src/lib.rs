@@ -356,6 +356,13 @@ fn cameras_arg(camera: Option<&Bound<'_, PyAny>>, n: usize) -> PyResult<Vec<usiz
     Ok(cams)
 }
 
+/// Landmark columns from Python: ids, `lat_lon_alt` (N, 3) and `sigma_m` (N,) or None.
+type LandmarkColumns<'py> = (
+    Vec<String>,
+    PyArrayLike2<'py, f64, AllowTypeChange>,
+    Option<PyArrayLike1<'py, f64, AllowTypeChange>>,
+);
+
 /// Landmarks from a CSV path, or from columns `(ids, lat_lon_alt (N, 3), sigma_m (N,) or
 /// None)`.
 fn landmarks_arg(landmarks: &Bound<'_, PyAny>) -> PyResult<(Vec<Landmark>, PathBuf)> {
@@ -363,11 +370,7 @@ fn landmarks_arg(landmarks: &Bound<'_, PyAny>) -> PyResult<(Vec<Landmark>, PathB
         let l = vgps_io::read_landmarks(&path).map_err(|e| VgpsError::new_err(e.to_string()))?;
         return Ok((l, path));
     }
-    let (ids, lla, sigma): (
-        Vec<String>,
-        PyArrayLike2<'_, f64, AllowTypeChange>,
-        Option<PyArrayLike1<'_, f64, AllowTypeChange>>,
-    ) = landmarks.extract().map_err(|_| {
+    let (ids, lla, sigma): LandmarkColumns<'_> = landmarks.extract().map_err(|_| {
         PyValueError::new_err(
             "landmarks: expected a CSV path or a tuple (ids, lat_lon_alt (N, 3), sigma_m (N,) \
              or None)",
@@ -691,6 +694,7 @@ impl Localizer {
             time_s,
             observations,
             gnss,
+            attitude: None,
         };
         let inner = &mut self.inner;
         let fix = py.detach(|| inner.process(&frame));

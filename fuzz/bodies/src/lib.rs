@@ -816,6 +816,7 @@ pub fn matcher(data: &[u8]) {
         max_hypotheses: c[4],
         seed: input.seed,
         up_in_rig: input.up.map(|(u, t)| (vec3(&u), t.get())),
+        heading_in_world: None,
         min_extensions: c[5] % 4,
         max_rounds: 1 + (c[5] / 4) % 4,
         // 0, 0.4995 or 0.999.

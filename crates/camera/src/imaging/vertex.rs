@@ -314,10 +314,10 @@ impl VertexDetector {
                         && (line.n.dot(&p.x) - line.d).abs() <= band
                         && (p.x - corner).norm() >= c.exclusion_px
                 });
-                if let Some(fit) = fit_line(selected) {
-                    if fit.count >= c.min_edge_pixels {
-                        refitted.push(fit);
-                    }
+                if let Some(fit) = fit_line(selected)
+                    && fit.count >= c.min_edge_pixels
+                {
+                    refitted.push(fit);
                 }
             }
             if refitted.len() < 2 {

@@ -44,12 +44,14 @@ pub(crate) fn error_vs_time_svg(
         .unwrap_or(0.0);
     let has_truth = geom.iter().any(|g| g.truth.is_some());
     type Pick = fn(&FrameGeom, bool) -> Option<f64>;
+    /// A curve: its legend, how to pick its value, its colour and its stroke width.
+    type Series<'a> = (&'a str, Pick, (u8, u8, u8), u32);
     let visual_name = if has_truth {
         "visual vs truth"
     } else {
         "visual vs satellite"
     };
-    let series: [(&str, Pick, (u8, u8, u8), u32); 2] = [
+    let series: [Series; 2] = [
         (
             "satellite vs truth",
             |g, _| g.gnss_vs_truth.map(|d| d.h),

@@ -622,7 +622,7 @@ fn facade_material(
 /// Separable Gaussian blur of standard deviation `sigma` (pixels; ≤ 0: a copy), the borders
 /// clamped.
 fn gaussian_blur(src: &[f32], w: usize, h: usize, sigma: f64) -> Vec<f32> {
-    if !(sigma > 0.0) || w == 0 || h == 0 {
+    if sigma.is_nan() || sigma <= 0.0 || w == 0 || h == 0 {
         return src.to_vec();
     }
     let r = (3.0 * sigma).ceil() as isize;
