@@ -232,8 +232,6 @@ def test_replay_of_a_missing_or_corrupt_drive_raises(tmp_path, vgps_cli):
         vgps.replay(tmp_path / "corrupt", tmp_path / "out")
 
 
-@pytest.mark.xfail(strict=True, reason="known bug, not yet found: vgps.Localizer fixes 0 of the "
-                   "first 30 frames of this drive (status no_fix) while vgps.replay fixes them")
 def test_localizer_frame_by_frame_on_a_simulated_drive(small_drive):
     drive = json.loads((small_drive / "drive.json").read_text())
     cal = vgps.Calibration.load(small_drive / drive["calibration"])
