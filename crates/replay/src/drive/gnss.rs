@@ -245,10 +245,8 @@ impl GnssFileStats {
 
     /// The counts of the UBX reader in this form (NMEA lines and UBX frames together).
     pub fn from_ubx(stats: &super::ubx::UbxStats, records: &[GnssRecord]) -> Self {
-        let fixes = records.iter().filter(|r| r.fix.is_some()).count();
-        let mut messages = Vec::new();
-        if stats.skipped() > stats.other {
-            messages.push(format!(
+        let summary = (stats.skipped() > stats.other).then(|| {
+            format!(
                 "UBX: {} frames, {} NAV-PVT used; skipped {} bad checksum, {} truncated, {} without a valid UTC time, {} invalid",
                 stats.frames,
                 stats.nav_pvt,
@@ -256,32 +254,22 @@ impl GnssFileStats {
                 stats.truncated,
                 stats.untimed,
                 stats.invalid,
-            ));
-        }
-        messages.extend(stats.nmea.messages.iter().cloned());
-        messages.truncate(MAX_GNSS_MESSAGES);
-        Self {
-            entries: stats.frames + stats.bad_checksum + stats.truncated + stats.nmea.lines,
-            fixes,
-            no_fix: records.len() - fixes,
-            other_skipped: stats.untimed
-                + stats.invalid
-                + stats.bad_checksum
-                + stats.truncated
-                + stats.nmea.bad_checksum
-                + stats.nmea.truncated
-                + stats.nmea.invalid,
-            messages,
-            ..Self::new(GnssFormat::Ubx)
-        }
+            )
+        });
+        Self::from_binary(
+            GnssFormat::Ubx,
+            records,
+            summary,
+            [stats.frames, stats.bad_checksum, stats.truncated],
+            stats.untimed + stats.invalid,
+            &stats.nmea,
+        )
     }
 
     /// The counts of the SiRF reader in this form (NMEA lines and SiRF frames together).
     pub fn from_sirf(stats: &super::sirf::SirfStats, records: &[GnssRecord]) -> Self {
-        let fixes = records.iter().filter(|r| r.fix.is_some()).count();
-        let mut messages = Vec::new();
-        if stats.skipped() > stats.other {
-            messages.push(format!(
+        let summary = (stats.skipped() > stats.other).then(|| {
+            format!(
                 "SiRF: {} frames, {} MID 2 and {} MID 41 read; skipped {} bad checksum, {} truncated, {} invalid",
                 stats.frames,
                 stats.navigation,
@@ -289,22 +277,45 @@ impl GnssFileStats {
                 stats.bad_checksum,
                 stats.truncated,
                 stats.invalid,
-            ));
-        }
-        messages.extend(stats.nmea.messages.iter().cloned());
+            )
+        });
+        Self::from_binary(
+            GnssFormat::Sirf,
+            records,
+            summary,
+            [stats.frames, stats.bad_checksum, stats.truncated],
+            stats.invalid,
+            &stats.nmea,
+        )
+    }
+
+    /// The counts of a binary reader (UBX, SiRF) with the NMEA lines found amid its frames:
+    /// `[frames, bad_checksum, truncated]` of the binary frames, `skipped` the frames read
+    /// but unused (untimed, invalid), and the reader's summary message, if any, first.
+    fn from_binary(
+        format: GnssFormat,
+        records: &[GnssRecord],
+        summary: Option<String>,
+        [frames, bad_checksum, truncated]: [usize; 3],
+        skipped: usize,
+        nmea: &NmeaStats,
+    ) -> Self {
+        let fixes = records.iter().filter(|r| r.fix.is_some()).count();
+        let mut messages: Vec<String> = summary.into_iter().collect();
+        messages.extend(nmea.messages.iter().cloned());
         messages.truncate(MAX_GNSS_MESSAGES);
         Self {
-            entries: stats.frames + stats.bad_checksum + stats.truncated + stats.nmea.lines,
+            entries: frames + bad_checksum + truncated + nmea.lines,
             fixes,
             no_fix: records.len() - fixes,
-            other_skipped: stats.invalid
-                + stats.bad_checksum
-                + stats.truncated
-                + stats.nmea.bad_checksum
-                + stats.nmea.truncated
-                + stats.nmea.invalid,
+            other_skipped: skipped
+                + bad_checksum
+                + truncated
+                + nmea.bad_checksum
+                + nmea.truncated
+                + nmea.invalid,
             messages,
-            ..Self::new(GnssFormat::Sirf)
+            ..Self::new(format)
         }
     }
 
