@@ -605,12 +605,12 @@ impl Lut {
         Self::from_bytes(&bytes, &name)
     }
 
-    /// Writes the LUT file.
+    /// Writes the LUT file atomically (a reader sees the old file or the new one whole).
     ///
     /// # Errors
     /// [`CalibrationError::LutFile`] naming the file on an I/O error.
     pub fn write(&self, path: &Path) -> Result<(), CalibrationError> {
-        std::fs::write(path, self.to_bytes()).map_err(|e| CalibrationError::LutFile {
+        vgps_io::write_atomic(path, &self.to_bytes()).map_err(|e| CalibrationError::LutFile {
             path: path.display().to_string(),
             reason: e.to_string(),
         })
