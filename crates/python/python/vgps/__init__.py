@@ -30,12 +30,23 @@ __all__ = [
     "Calibration",
     "Localizer",
     "VgpsError",
+    "fleet",
     "locate",
     "p3p",
     "replay",
     "simulate",
     "triangulate",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """``vgps.fleet`` is imported on first use: ``import vgps`` stays fast and never imports
+    Ray (the optional ``vgps[fleet]`` extra)."""
+    if name == "fleet":
+        import importlib
+
+        return importlib.import_module(".fleet", __name__)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def locate(
