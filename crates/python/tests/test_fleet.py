@@ -25,6 +25,8 @@ def ray_local(tmp_path_factory):
     crash_dir = tmp_path_factory.mktemp("crash")
     # The workers inherit the driver's environment: the test hook that kills a worker once.
     os.environ["_VGPS_FLEET_TEST_CRASH_DIR"] = str(crash_dir)
+    # Tasks at normal priority (Ray's default is nice 15: slow on a loaded CI machine).
+    os.environ.setdefault("RAY_worker_niceness", "0")
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False,
              configure_logging=False)
     yield crash_dir
@@ -130,3 +132,18 @@ def test_duplicate_drive_names_are_refused_before_any_task(drives, tmp_path):
     with pytest.raises(ValueError, match="two drives have the name 'good_a'"):
         replay_many([drives[0], other], tmp_path / "out", progress=False)
     assert not (tmp_path / "out" / "fleet_summary.csv").exists()
+
+
+def test_command_line_with_a_drive_list(ray_local, drives, tmp_path, capsys):
+    from vgps.fleet import main
+
+    good_a, _, broken = drives
+    listing = tmp_path / "drives.txt"
+    listing.write_text(f"{good_a}\n\n{broken}\n")
+    out = tmp_path / "cli"
+    assert main(["--out", str(out), f"@{listing}", "--no-progress", "--no-imu"]) == 1
+    captured = capsys.readouterr()
+    assert "1/2 drives ok" in captured.out
+    assert f"failed: {broken}" in captured.err
+    summary = json.loads((out / "fleet_summary.json").read_text())
+    assert [r["status"] for r in summary["rows"]] == ["ok", "failed"]

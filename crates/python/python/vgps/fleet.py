@@ -66,6 +66,8 @@ SUMMARY_FIELDS = [
 # own worker process, once, as a crashed or OOM-killed worker would die.
 _CRASH_HOOK_ENV = "_VGPS_FLEET_TEST_CRASH_DIR"
 _CRASH_EXIT_CODE = 70
+# Ray's worker process priority (its default is nice 15), read when Ray starts its raylet.
+_NICENESS_ENV = "RAY_worker_niceness"
 
 
 def drive_name(drive: Union[str, "os.PathLike[str]"]) -> str:
@@ -237,6 +239,20 @@ def _import_ray():
     return ray
 
 
+def _init_local(ray) -> None:
+    """``ray.init()``, with the tasks at the driver's priority: Ray runs its workers at nice
+    15 by default, which on a machine shared with other work (a laptop, a CI runner) makes
+    a replay several times slower than the same command run by hand. ``RAY_worker_niceness``
+    set by the caller wins."""
+    previous = os.environ.get(_NICENESS_ENV)
+    os.environ.setdefault(_NICENESS_ENV, "0")
+    try:
+        ray.init()
+    finally:
+        if previous is None:
+            os.environ.pop(_NICENESS_ENV, None)
+
+
 def replay_many(
     drives: Iterable[Union[str, "os.PathLike[str]"]],
     out: Union[str, "os.PathLike[str]"],
@@ -272,7 +288,9 @@ def replay_many(
 
     Other keyword options are ``vgps.replay``'s (the command's flags: ``from_images=True``,
     ``no_gnss_prior=True``, …) and apply to every drive. Ray is started locally
-    (``ray.init()``) if no instance is connected yet.
+    (``ray.init()``, tasks at normal priority) if no instance is connected yet; when you
+    start it yourself on a shared machine, ``RAY_worker_niceness=0`` in the environment
+    gives the tasks the priority of a command run by hand (Ray's default is nice 15).
     """
     ray = _import_ray()
     drives = [os.path.abspath(os.fspath(d)) for d in drives]
@@ -299,7 +317,7 @@ def replay_many(
 
     start = time.perf_counter()
     if not ray.is_initialized():
-        ray.init()
+        _init_local(ray)
     task = ray.remote(_replay_one).options(**task_options)
     pending = {
         task.remote(drive, str(out / name), options): k
@@ -355,7 +373,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             parser.error(f"unsupported replay option {flag!r} (bare --flags only)")
         options[flag[2:].replace("-", "_")] = True
     ray = _import_ray()
-    ray.init(address=args.address)
+    if args.address or os.environ.get("RAY_ADDRESS"):
+        ray.init(address=args.address)  # a cluster (inside `ray job submit`: its own)
     rows = replay_many(drives, args.out, num_cpus=args.num_cpus, max_retries=args.max_retries,
                        progress=not args.no_progress, **options)
     failed = [r for r in rows if r["status"] != "ok"]
