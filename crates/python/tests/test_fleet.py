@@ -121,7 +121,7 @@ def test_a_worker_killed_mid_task_is_retried(ray_local, drives, tmp_path):
     (ray_local / "good_a.armed").touch()
     rows = replay_many([good_a], tmp_path / "not_retried", max_retries=0, progress=False)
     assert rows[0]["status"] == "failed"
-    assert str(good_a) in rows[0]["error"], rows[0]["error"]
+    assert str(good_a) in rows[0]["error"] and "Worker" in rows[0]["error"], rows[0]["error"]
 
 
 def test_duplicate_drive_names_are_refused_before_any_task(drives, tmp_path):
