@@ -68,13 +68,17 @@ def test_import_vgps_does_not_import_ray():
     assert out.stdout.strip() == "ok", out.stderr
 
 
-def test_replay_many_broken_and_missing_drives_fail_alone(ray_local, drives, tmp_path):
+def test_replay_many_broken_and_missing_drives_fail_alone(ray_local, drives, tmp_path, capsys,
+                                                          monkeypatch):
     from vgps.fleet import SUMMARY_FIELDS, replay_many
 
     good_a, good_b, broken = drives
     missing = good_a.parent / "no_such_drive"
     out = tmp_path / "fleet"
-    rows = replay_many([good_a, broken, missing, good_b], out, progress=False)
+    monkeypatch.setitem(sys.modules, "tqdm", None)  # the plain progress line, even with tqdm
+    monkeypatch.setitem(sys.modules, "tqdm.auto", None)
+    rows = replay_many([good_a, broken, missing, good_b], out)
+    assert "vgps fleet: 4/4 drives done, 2 failed" in capsys.readouterr().err
 
     assert [r["drive"] for r in rows] == ["good_a", "broken", "no_such_drive", "good_b"]
     assert [r["status"] for r in rows] == ["ok", "failed", "failed", "ok"]

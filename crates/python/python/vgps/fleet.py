@@ -169,9 +169,10 @@ class _Progress:
             self.bar.set_postfix(failed=self.failed, refresh=False)
             self.bar.update(1)
         else:
+            wall = "" if row["wall_s"] is None else f", {row['wall_s']:.1f} s"
             print(
                 f"vgps fleet: {self.done}/{self.total} drives done, {self.failed} failed "
-                f"({row['drive']}: {row['status']}, {row['wall_s']:.1f} s)",
+                f"({row['drive']}: {row['status']}{wall})",
                 file=sys.stderr,
                 flush=True,
             )
