@@ -26,12 +26,15 @@ def ray_local(tmp_path_factory):
     # The workers inherit the driver's environment: the test hook that kills a worker once.
     os.environ["_VGPS_FLEET_TEST_CRASH_DIR"] = str(crash_dir)
     # Tasks at normal priority (Ray's default is nice 15: slow on a loaded CI machine).
+    set_niceness = "RAY_worker_niceness" not in os.environ
     os.environ.setdefault("RAY_worker_niceness", "0")
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False,
              configure_logging=False)
     yield crash_dir
     ray.shutdown()
     os.environ.pop("_VGPS_FLEET_TEST_CRASH_DIR", None)
+    if set_niceness:
+        os.environ.pop("RAY_worker_niceness", None)
 
 
 @pytest.fixture(scope="module")
