@@ -112,13 +112,11 @@ fn array_arg<'py>(
     name: &str,
     a: &Bound<'py, PyAny>,
 ) -> PyResult<PyArrayLikeDyn<'py, f64, AllowTypeChange>> {
-    a.extract().map_err(|e: PyErr| {
-        let py = a.py();
+    a.extract().inspect_err(|e: &PyErr| {
         // Best effort: a note is an addition to the message, never a second error.
         let _ = e
-            .value(py)
+            .value(a.py())
             .call_method1("add_note", (format!("while processing '{name}'"),));
-        e
     })
 }
 
