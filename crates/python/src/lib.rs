@@ -15,9 +15,10 @@
 #![forbid(unsafe_code)]
 
 use nalgebra::Vector3;
-use numpy::ndarray::{Array1, Array2, Array3, ArrayView2};
+use numpy::ndarray::{Array1, Array2, ArrayView2, ArrayView3};
 use numpy::{
     AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArrayLike1, PyArrayLike2, PyArrayLikeDyn,
+    PyArrayMethods, PyUntypedArrayMethods, ToPyArray,
 };
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -27,12 +28,14 @@ use std::sync::Arc;
 use vgps_camera::calibration::{CameraModel, Pixel, Rig};
 use vgps_core::localizer::{self, Frame, GnssPosition, LandmarkMap, LocalizerOptions, Observation};
 use vgps_geometry::geo::Geodetic;
-use vgps_geometry::geometry::{Pose, Ray};
+use vgps_geometry::geometry::Ray;
 use vgps_geometry::triangulation::{RayObservation, triangulate_rays};
 use vgps_io::{Landmark, ObservationRecord};
 
+// Module `vgps` (where the package exports it), so that pickle finds `vgps.VgpsError`:
+// the error crosses process boundaries (multiprocessing, Ray) intact.
 pyo3::create_exception!(
-    _vgps,
+    vgps,
     VgpsError,
     PyValueError,
     "An error of the vgps library (bad input file, invalid problem, failed command); the \
@@ -59,13 +62,62 @@ fn rows<const K: usize>(name: &str, array: &ArrayView2<'_, f64>) -> PyResult<Vec
         .collect())
 }
 
-/// A pose as a `(3, 4)` block `[R | t]` appended to `out`.
-fn push_pose(out: &mut Vec<f64>, pose: &Pose) {
-    let r = pose.rotation.matrix();
-    let t = pose.translation.vector;
-    for i in 0..3 {
-        out.extend_from_slice(&[r[(i, 0)], r[(i, 1)], r[(i, 2)], t[i]]);
+/// The most solutions a P3P problem has.
+const P3P_MAX_SOLUTIONS: usize = 4;
+
+/// Every solution of one P3P problem (bearings and points as row-major 3×3) as `k` blocks
+/// `[R | t]` (3×4, row-major) at the front of a stack buffer: no heap allocation.
+fn p3p_one(b: &[f64], p: &[f64]) -> ([f64; 12 * P3P_MAX_SOLUTIONS], usize) {
+    let bearings: [Vector3<f64>; 3] =
+        std::array::from_fn(|i| Vector3::new(b[3 * i], b[3 * i + 1], b[3 * i + 2]));
+    let points: [Vector3<f64>; 3] =
+        std::array::from_fn(|i| Vector3::new(p[3 * i], p[3 * i + 1], p[3 * i + 2]));
+    let mut out = [0.0; 12 * P3P_MAX_SOLUTIONS];
+    let solutions = vgps_geometry::solvers::p3p(&bearings, &points);
+    let k = solutions.len().min(P3P_MAX_SOLUTIONS);
+    for (s, block) in solutions.iter().zip(out.chunks_exact_mut(12)) {
+        let r = s.rotation.matrix();
+        let t = s.translation.vector;
+        for i in 0..3 {
+            block[4 * i..4 * i + 4].copy_from_slice(&[r[(i, 0)], r[(i, 1)], r[(i, 2)], t[i]]);
+        }
     }
+    (out, k)
+}
+
+/// `k` solutions as a new `(k, 3, 4)` array: one NumPy allocation, one copy.
+fn poses_array<'py>(
+    py: Python<'py>,
+    (out, k): ([f64; 12 * P3P_MAX_SOLUTIONS], usize),
+) -> PyResult<Bound<'py, PyAny>> {
+    let view = ArrayView3::from_shape((k, 3, 4), &out[..12 * k])
+        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    Ok(view.to_pyarray(py).into_any())
+}
+
+/// The nine numbers of a C-contiguous `float64` array of shape `(3, 3)` (a row of an
+/// `(N, 3, 3)` array is one), read without NumPy's general conversion; `None` for anything
+/// else, which then goes through [`array_arg`] and its checks.
+fn exact_3x3(a: &Bound<'_, PyAny>) -> Option<Vec<f64>> {
+    let a = a.cast::<PyArray2<f64>>().ok()?;
+    if a.shape() != [3, 3] || !a.is_c_contiguous() {
+        return None;
+    }
+    a.to_vec().ok()
+}
+
+/// Any array-like as a `float64` array (NumPy's `asarray`); a conversion error gets the
+/// note "while processing 'NAME'", as PyO3 adds to an argument it converts itself.
+fn array_arg<'py>(
+    name: &str,
+    a: &Bound<'py, PyAny>,
+) -> PyResult<PyArrayLikeDyn<'py, f64, AllowTypeChange>> {
+    a.extract().inspect_err(|e: &PyErr| {
+        // Best effort: a note is an addition to the message, never a second error.
+        let _ = e
+            .value(a.py())
+            .call_method1("add_note", (format!("while processing '{name}'"),));
+    })
 }
 
 /// Every pose of a rig that sees three world points along three bearings (P3P, Lambda
@@ -87,11 +139,17 @@ fn push_pose(out: &mut Vec<f64>, pose: &Pose) {
 #[pyfunction]
 fn p3p<'py>(
     py: Python<'py>,
-    bearings: PyArrayLikeDyn<'py, f64, AllowTypeChange>,
-    points: PyArrayLikeDyn<'py, f64, AllowTypeChange>,
+    bearings: &Bound<'py, PyAny>,
+    points: &Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let b = bearings.as_array();
-    let p = points.as_array();
+    // One problem per call with float64 (3, 3) arrays, the per-frame case: no conversion,
+    // no borrow bookkeeping, one output allocation (issue #29's per-call overhead).
+    if let (Some(b), Some(p)) = (exact_3x3(bearings), exact_3x3(points)) {
+        return poses_array(py, p3p_one(&b, &p));
+    }
+    let b = array_arg("bearings", bearings)?;
+    let p = array_arg("points", points)?;
+    let (b, p) = (b.as_array(), p.as_array());
     if b.shape() != p.shape() {
         return Err(PyValueError::new_err(format!(
             "bearings and points must have the same shape, got {:?} and {:?}",
@@ -99,31 +157,18 @@ fn p3p<'py>(
             p.shape()
         )));
     }
-    let solve = |b: &dyn Fn(usize, usize) -> f64, p: &dyn Fn(usize, usize) -> f64| {
-        let bearings: [Vector3<f64>; 3] =
-            std::array::from_fn(|i| Vector3::new(b(i, 0), b(i, 1), b(i, 2)));
-        let points: [Vector3<f64>; 3] =
-            std::array::from_fn(|i| Vector3::new(p(i, 0), p(i, 1), p(i, 2)));
-        let solutions = vgps_geometry::solvers::p3p(&bearings, &points);
-        let mut out = Vec::with_capacity(12 * solutions.len());
-        for s in &solutions {
-            push_pose(&mut out, s);
-        }
-        (solutions.len(), out)
-    };
-    let to_array = |(k, out): (usize, Vec<f64>)| -> PyResult<Bound<'py, PyAny>> {
-        let a = Array3::from_shape_vec((k, 3, 4), out)
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
-        Ok(a.into_pyarray(py).into_any())
-    };
+    // Row-major copies, whatever the arrays' memory order.
+    let bs: Vec<f64> = b.iter().copied().collect();
+    let ps: Vec<f64> = p.iter().copied().collect();
     match b.shape() {
-        [3, 3] => to_array(solve(&|i, j| b[[i, j]], &|i, j| p[[i, j]])),
-        [n, 3, 3] => {
-            let list = PyList::empty(py);
-            for k in 0..*n {
-                list.append(to_array(solve(&|i, j| b[[k, i, j]], &|i, j| p[[k, i, j]]))?)?;
-            }
-            Ok(list.into_any())
+        [3, 3] => poses_array(py, p3p_one(&bs, &ps)),
+        [_, 3, 3] => {
+            let arrays = bs
+                .chunks_exact(9)
+                .zip(ps.chunks_exact(9))
+                .map(|(b, p)| poses_array(py, p3p_one(b, p)))
+                .collect::<PyResult<Vec<_>>>()?;
+            Ok(PyList::new(py, arrays)?.into_any())
         }
         other => Err(shape_error("bearings", "(3, 3) or (N, 3, 3)", other)),
     }

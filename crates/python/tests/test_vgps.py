@@ -92,6 +92,27 @@ def test_p3p_bad_shapes_and_dtypes_raise_value_error():
     assert vgps.p3p([[1, 0, 0]] * 3, [[1, 0, 0]] * 3).shape == (0, 3, 4)
 
 
+def test_p3p_memory_layouts_and_dtypes_give_the_same_poses():
+    """The per-call fast path (C-contiguous float64 (3, 3)) and the general path (any
+    layout, any dtype NumPy converts) agree: Fortran order, strided views, float32."""
+    rng = np.random.default_rng(3)
+    (bearings, points, _, _), = random_p3p(rng, 1)
+    expected = vgps.p3p(bearings, points)
+    assert expected.shape[0] >= 1 and expected.flags["C_CONTIGUOUS"]
+    wide_b, wide_p = np.zeros((3, 6)), np.zeros((3, 6))
+    wide_b[:, ::2], wide_p[:, ::2] = bearings, points
+    for b, p in [
+        (np.asfortranarray(bearings), np.asfortranarray(points)),
+        (wide_b[:, ::2], wide_p[:, ::2]),  # strided views
+        (bearings.tolist(), points),
+    ]:
+        np.testing.assert_array_equal(vgps.p3p(b, p), expected)
+    single = vgps.p3p(bearings.astype(np.float32), points.astype(np.float32))
+    assert single.dtype == np.float64 and single.shape[1:] == (3, 4)
+    with pytest.raises(ValueError, match="points"):
+        vgps.p3p(bearings, "not an array")
+
+
 def test_p3p_agrees_with_poselib():
     poselib = pytest.importorskip("poselib")
     rng = np.random.default_rng(7)
@@ -273,3 +294,11 @@ def test_docstring_examples_run(name, root, monkeypatch):
     runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS)
     runner.run(test)
     assert runner.failures == 0 and runner.tries > 0
+
+
+def test_vgps_error_pickles_as_itself():
+    """Errors cross process boundaries (multiprocessing, Ray) as vgps.VgpsError."""
+    import pickle
+
+    err = pickle.loads(pickle.dumps(vgps.VgpsError("drive.json: bad")))
+    assert type(err) is vgps.VgpsError and str(err) == "drive.json: bad"

@@ -18,9 +18,7 @@ Example::
 
 from __future__ import annotations
 
-import json
 import os
-from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 from ._vgps import Calibration, Localizer, VgpsError, p3p, triangulate
@@ -30,12 +28,23 @@ __all__ = [
     "Calibration",
     "Localizer",
     "VgpsError",
+    "fleet",
     "locate",
     "p3p",
     "replay",
     "simulate",
     "triangulate",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """``vgps.fleet`` is imported on first use: ``import vgps`` stays fast and never imports
+    Ray (the optional ``vgps[fleet]`` extra)."""
+    if name == "fleet":
+        import importlib
+
+        return importlib.import_module(".fleet", __name__)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def locate(
@@ -130,10 +139,12 @@ def replay(
         >>> report["frames"] > 0
         True
     """
-    out_dir = Path(out) if out is not None else Path(drive) / "replay"
-    _run_cli(["replay", os.fspath(drive), "--out", os.fspath(out_dir), "--quiet"]
+    import json  # here, not at the top: `import vgps` stays fast (issue #29: <= 50 ms)
+
+    out_dir = os.fspath(out) if out is not None else os.path.join(os.fspath(drive), "replay")
+    _run_cli(["replay", os.fspath(drive), "--out", out_dir, "--quiet"]
              + _cli_options(options))
-    with open(out_dir / "report.json", encoding="utf-8") as f:
+    with open(os.path.join(out_dir, "report.json"), encoding="utf-8") as f:
         return json.load(f)
 
 

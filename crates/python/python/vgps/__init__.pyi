@@ -3,6 +3,7 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy.typing as npt
 
+from . import fleet as fleet
 from ._vgps import Calibration as Calibration
 from ._vgps import Localizer as Localizer
 from ._vgps import VgpsError as VgpsError
