@@ -254,7 +254,7 @@ fn geojson_round_trip() {
         .filter(|f| {
             matches!(
                 f.geometry.as_ref().unwrap().value,
-                geojson::Value::LineString(_)
+                geojson::GeometryValue::LineString { .. }
             )
         })
         .collect();
@@ -262,7 +262,7 @@ fn geojson_round_trip() {
         .features
         .iter()
         .filter_map(|f| match &f.geometry.as_ref().unwrap().value {
-            geojson::Value::Point(p) => Some((f, p.clone())),
+            geojson::GeometryValue::Point { coordinates: p } => Some((f, p.clone())),
             _ => None,
         })
         .collect();
@@ -481,7 +481,9 @@ fn xml_elements(text: &str) -> Vec<String> {
     loop {
         match reader.read_event() {
             Ok(Event::Start(e)) | Ok(Event::Empty(e)) => {
-                names.push(String::from_utf8_lossy(e.name().as_ref()).into_owned())
+                let name = e.name();
+                let name: &str = name.as_ref();
+                names.push(name.to_owned())
             }
             Ok(Event::Eof) => break,
             Ok(_) => {}
@@ -747,7 +749,7 @@ fn nmea_and_geojson_read_back_equal_fixes_csv() {
         let Some(geometry) = &f.geometry else {
             continue;
         };
-        let geojson::Value::Point(p) = &geometry.value else {
+        let geojson::GeometryValue::Point { coordinates: p } = &geometry.value else {
             continue;
         };
         let frame = f.properties.as_ref().unwrap()["frame"].as_u64().unwrap();
