@@ -11,9 +11,9 @@
 //! localizer `ρ ≥ 1 m`; those limits stay with the callers.
 
 /// Default standard deviation of a detected bearing, radians (0.1°): the default of
-/// [`crate::fix::FixOptions`] and [`crate::matcher::MatchOptions`]. Written as
-/// `0.1_f64.to_radians()` computes it, so that the value is the same bit for bit.
-pub const DEFAULT_BEARING_SIGMA_RAD: f64 = 0.1 * (std::f64::consts::PI / 180.0);
+/// [`crate::fix::FixOptions`] and [`crate::matcher::MatchOptions`], and of the geometry
+/// crate's estimators (defined there, once).
+pub use vgps_geometry::DEFAULT_BEARING_SIGMA_RAD;
 
 /// The effective variance of a bearing, rad²: `σ² + (σ_m / ρ)²` for the bearing noise
 /// `sigma_rad`, the landmark's survey σ `sigma_m` (metres) and its range `range` (metres).

@@ -35,6 +35,13 @@
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
 
+/// The default standard deviation of a measured bearing, radians (0.1°): the one default
+/// of every estimator in the workspace (the pose refinement, robust absolute pose, the fix,
+/// the matcher and the localizer; `vgps_core::measurement` re-exports it beside the
+/// effective bearing σ). Written as `0.1_f64.to_radians()` computes it, so that the value
+/// is the same bit for bit.
+pub const DEFAULT_BEARING_SIGMA_RAD: f64 = 0.1 * (std::f64::consts::PI / 180.0);
+
 pub mod attitude;
 pub mod geo;
 pub mod geometry;

@@ -322,6 +322,10 @@ impl LandmarkMapper {
     /// fixing from surrogates has such poses: treating their common drift as independent
     /// noise widens every gate by it, and rays of different landmarks then join one track.
     ///
+    /// Long (about 200 lines) for a reason: gating, the assignment by priority and the
+    /// validation all run before the first change to the mapper, so that an error leaves it
+    /// unchanged; one body keeps that order plain.
+    ///
     /// # Errors
     /// As [`add_frame`](Self::add_frame); also [`MappingError::InvalidPose`] for a
     /// non-finite shared covariance.

@@ -64,8 +64,9 @@ pub const LO_ITERATIONS: usize = 2;
 /// Gauss–Newton iterations on the final model in [`estimate_absolute_pose`].
 pub const FINAL_ITERATIONS: usize = 6;
 
-/// Default [`AbsolutePoseOptions::sigma_rad`]: 0.1°.
-pub const DEFAULT_SIGMA_RAD: f64 = 0.1 * std::f64::consts::PI / 180.0;
+/// Default [`AbsolutePoseOptions::sigma_rad`]: the workspace's one default,
+/// [`crate::DEFAULT_BEARING_SIGMA_RAD`] (0.1°).
+pub const DEFAULT_SIGMA_RAD: f64 = crate::DEFAULT_BEARING_SIGMA_RAD;
 
 /// A point closer than this to its ray origin (metres) has no direction: infinite residual.
 const MIN_RANGE_M: f64 = 1e-6;

@@ -39,9 +39,11 @@ pub const LADYBUG_CAMERA_RADIUS_M: f64 = 0.04;
 /// Number of side cameras of a Ladybug-like head (72° apart).
 pub const LADYBUG_SIDE_CAMERAS: usize = 5;
 
-/// One camera of a multi-camera rig, in the rig frame (x forward, y left, z up).
+/// Where one camera of a synthetic multi-camera rig sits and looks, in the rig frame (x
+/// forward, y left, z up); the calibrated camera (model and placement) is
+/// `vgps_camera::calibration::RigCamera`.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RigCamera {
+pub struct CameraAxis {
     /// Optical centre (metres, rig frame).
     pub centre_in_rig: Vector3<f64>,
     /// Unit optical axis (rig frame).
@@ -52,7 +54,7 @@ pub struct RigCamera {
 /// at azimuths 0°, 72°, …, 288° (counter-clockwise from rig +x, seen from above) with their
 /// centres [`LADYBUG_CAMERA_RADIUS_M`] out along their axes, and a top camera looking up
 /// (+z) with its centre [`LADYBUG_CAMERA_RADIUS_M`] above the rig origin.
-pub fn ladybug_cameras() -> [RigCamera; LADYBUG_SIDE_CAMERAS + 1] {
+pub fn ladybug_cameras() -> [CameraAxis; LADYBUG_SIDE_CAMERAS + 1] {
     std::array::from_fn(|i| {
         let axis_in_rig = if i < LADYBUG_SIDE_CAMERAS {
             let azimuth = i as f64 * std::f64::consts::TAU / LADYBUG_SIDE_CAMERAS as f64;
@@ -60,7 +62,7 @@ pub fn ladybug_cameras() -> [RigCamera; LADYBUG_SIDE_CAMERAS + 1] {
         } else {
             Vector3::z()
         };
-        RigCamera {
+        CameraAxis {
             centre_in_rig: axis_in_rig * LADYBUG_CAMERA_RADIUS_M,
             axis_in_rig,
         }
@@ -74,7 +76,7 @@ pub fn ladybug_camera_centres() -> [Vector3<f64>; LADYBUG_SIDE_CAMERAS + 1] {
 
 /// Index of the camera whose optical axis is nearest to `bearing_in_rig` (largest cosine);
 /// `None` for an empty rig.
-pub fn nearest_camera(cameras: &[RigCamera], bearing_in_rig: &Vector3<f64>) -> Option<usize> {
+pub fn nearest_camera(cameras: &[CameraAxis], bearing_in_rig: &Vector3<f64>) -> Option<usize> {
     cameras
         .iter()
         .enumerate()
@@ -95,12 +97,12 @@ pub enum RigModel {
     Ladybug,
     /// Any set of cameras (each point goes to the camera with the nearest axis). An empty
     /// list means a central camera.
-    Cameras(Vec<RigCamera>),
+    Cameras(Vec<CameraAxis>),
 }
 
 impl RigModel {
     /// The cameras of this rig (empty for a central camera).
-    pub fn cameras(&self) -> Vec<RigCamera> {
+    pub fn cameras(&self) -> Vec<CameraAxis> {
         match self {
             Self::Central => Vec::new(),
             Self::Ladybug => ladybug_cameras().to_vec(),

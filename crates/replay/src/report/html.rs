@@ -7,15 +7,15 @@
 //!   millimetres, every frame's fix coloured by its horizontal σ or by its status, the 95 %
 //!   covariance ellipses, the drive's landmarks, and a click on a fix shows its frame;
 //! - the horizontal error against time and the error CDFs, drawn with `plotters`' SVG
-//!   backend ([`super::svg_plots`]);
+//!   backend (drawn by [`super::charts`], the same functions as the PNGs);
 //! - the text summary.
 //!
 //! The page asks for nothing over the network unless its reader ticks "online background
 //! map"; the scripts, styles, data and plots are all inline.
 
 use super::derived::derive;
+use super::plot::{error_cdf_svg, error_vs_time_svg};
 use super::stats::{Comparison, Report};
-use super::svg_plots::{error_cdf_svg, error_vs_time_svg};
 use super::text::summary_table;
 use super::time::utc_iso8601;
 use super::tracks::xml_escape;

@@ -51,13 +51,13 @@
 //! ```
 
 mod atomic;
+mod charts;
 mod csv_out;
 mod derived;
 mod html;
 mod nmea;
 mod plot;
 mod stats;
-mod svg_plots;
 mod text;
 pub(crate) mod time;
 mod tracks;

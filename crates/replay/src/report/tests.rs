@@ -254,7 +254,7 @@ fn geojson_round_trip() {
         .filter(|f| {
             matches!(
                 f.geometry.as_ref().unwrap().value,
-                geojson::Value::LineString(_)
+                geojson::GeometryValue::LineString { .. }
             )
         })
         .collect();
@@ -262,7 +262,7 @@ fn geojson_round_trip() {
         .features
         .iter()
         .filter_map(|f| match &f.geometry.as_ref().unwrap().value {
-            geojson::Value::Point(p) => Some((f, p.clone())),
+            geojson::GeometryValue::Point { coordinates: p } => Some((f, p.clone())),
             _ => None,
         })
         .collect();
@@ -481,7 +481,9 @@ fn xml_elements(text: &str) -> Vec<String> {
     loop {
         match reader.read_event() {
             Ok(Event::Start(e)) | Ok(Event::Empty(e)) => {
-                names.push(String::from_utf8_lossy(e.name().as_ref()).into_owned())
+                let name = e.name();
+                let name: &str = name.as_ref();
+                names.push(name.to_owned())
             }
             Ok(Event::Eof) => break,
             Ok(_) => {}
@@ -671,4 +673,93 @@ fn html_without_truth_has_no_truth_rows_legend_or_heading_and_keeps_the_headline
     assert!(!shown.contains("heading error"));
     assert!(shown.contains("<td>visual vs satellite</td>"));
     assert!(html.contains("\"has_truth\":false"));
+}
+
+/// `fixes.csv`'s rows as (frame, lat, lon, alt), `None` for a row without a visual fix.
+fn csv_positions(text: &str) -> Vec<(u64, Option<(f64, f64, f64)>)> {
+    let mut rd = csv::Reader::from_reader(text.as_bytes());
+    let header = rd.headers().unwrap().clone();
+    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let (f, lat, lon, alt) = (col("frame"), col("lat"), col("lon"), col("alt"));
+    rd.records()
+        .map(|r| {
+            let r = r.unwrap();
+            let p = (!r[lat].is_empty()).then(|| {
+                let v = |k: usize| r[k].parse::<f64>().unwrap();
+                (v(lat), v(lon), v(alt))
+            });
+            (r[f].parse().unwrap(), p)
+        })
+        .collect()
+}
+
+/// `fixes.nmea` and `track.geojson` read back by third-party readers (the `nmea` and
+/// `geojson` crates) give the positions of `fixes.csv`, within the files' rounding
+/// (NMEA: 10⁻⁷ minute; CSV and GeoJSON: 10⁻⁹ degree; heights: 1 mm).
+#[test]
+fn nmea_and_geojson_read_back_equal_fixes_csv() {
+    let recs = drift_records();
+    let csv = csv_positions(&fixes_csv(&drive(), &recs));
+    assert_eq!(csv.len(), recs.len());
+    assert!(csv.iter().filter(|r| r.1.is_some()).count() >= 5);
+    let close = |a: (f64, f64, f64), b: (f64, f64, f64), deg: f64| {
+        (a.0 - b.0).abs() <= deg && (a.1 - b.1).abs() <= deg && (a.2 - b.2).abs() <= 1e-3
+    };
+    // NMEA: every GGA, RMC and GST sentence parses; one GGA and one RMC per CSV row, in
+    // order, with the row's position (an empty one for a row without a fix).
+    let nmea_text = fixes_nmea(&recs);
+    let (mut gga, mut rmc, mut gst) = (Vec::new(), Vec::new(), 0);
+    for line in nmea_text.split_terminator("\r\n") {
+        if line.starts_with("$GPGBS") || line.starts_with("$GPHDT") {
+            continue; // GBS: see nmea_checksums_and_round_trip; HDT carries no position.
+        }
+        match ::nmea::parse_str(line).unwrap_or_else(|e| panic!("{line}: {e:?}")) {
+            ::nmea::ParseResult::GGA(g) => gga.push(
+                g.latitude
+                    .map(|lat| (lat, g.longitude.unwrap(), f64::from(g.altitude.unwrap()))),
+            ),
+            ::nmea::ParseResult::RMC(m) => rmc.push(m.lat.map(|lat| (lat, m.lon.unwrap()))),
+            ::nmea::ParseResult::GST(_) => gst += 1,
+            other => panic!("unexpected {other:?}"),
+        }
+    }
+    assert_eq!(gga.len(), csv.len());
+    assert_eq!(rmc.len(), csv.len());
+    assert_eq!(gst, csv.iter().filter(|r| r.1.is_some()).count());
+    let nmea_deg = 0.5e-7 / 60.0 + 0.5e-9 + 1e-12;
+    for ((frame, row), (g, m)) in csv.iter().zip(gga.iter().zip(&rmc)) {
+        match row {
+            Some(p) => {
+                let g = g.unwrap_or_else(|| panic!("frame {frame}: GGA without a position"));
+                assert!(close(*p, g, nmea_deg), "frame {frame}: {p:?} vs GGA {g:?}");
+                let m = m.unwrap();
+                assert!(
+                    close(*p, (m.0, m.1, p.2), nmea_deg),
+                    "frame {frame}: RMC {m:?}"
+                );
+            }
+            None => assert!(g.is_none() && m.is_none(), "frame {frame}"),
+        }
+    }
+    // GeoJSON: a FeatureCollection whose points are the CSV's fixes, by frame.
+    let gj: geojson::GeoJson = track_geojson(&drive(), &recs).parse().unwrap();
+    let fc = geojson::FeatureCollection::try_from(gj).unwrap();
+    let mut points = 0;
+    for f in &fc.features {
+        let Some(geometry) = &f.geometry else {
+            continue;
+        };
+        let geojson::GeometryValue::Point { coordinates: p } = &geometry.value else {
+            continue;
+        };
+        let frame = f.properties.as_ref().unwrap()["frame"].as_u64().unwrap();
+        let row = csv.iter().find(|r| r.0 == frame).unwrap().1.unwrap();
+        let q = (p[1], p[0], p[2]);
+        assert!(
+            close(row, q, 1e-9 + 1e-12),
+            "frame {frame}: {row:?} vs {q:?}"
+        );
+        points += 1;
+    }
+    assert_eq!(points, csv.iter().filter(|r| r.1.is_some()).count());
 }

@@ -229,6 +229,9 @@ impl DayRenderer {
     /// Renders camera `camera` of the rig at `world_from_rig` in `scene`, lit by the sun in
     /// the ENU direction `sun` (unit; below the horizon: diffuse light only), deterministic
     /// for `seed`. `None` for a camera index outside the rig.
+    ///
+    /// Long (about 180 lines) for a reason: the per-tile ray loop shares its candidate
+    /// lists, shading and anti-aliasing state in one hot body (the renderer's time is here).
     pub fn render(
         &self,
         scene: &DayScene,

@@ -472,6 +472,11 @@ fn quantize(x: f64, q: f64) -> f64 {
 
 /// Runs a scenario.
 ///
+/// Long (about 260 lines) for a reason: the stages (motion, world, outages, survey, frames,
+/// GNSS) draw from four seeded random streams in a fixed order, and every published drive
+/// depends on that order bit for bit; one body keeps the order visible. Split only with a
+/// byte-identical `vgps demo` check.
+///
 /// # Errors
 /// [`SimulateError::Scenario`] for an invalid parameter, [`SimulateError::Geo`] when a
 /// position leaves the valid geodetic range.

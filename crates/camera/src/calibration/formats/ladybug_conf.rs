@@ -225,6 +225,10 @@ impl Ctx<'_> {
 
 /// Parses the text of a `.conf` file; `path` is quoted in errors.
 ///
+/// Long (about 175 lines) for a reason: one loop over the file's blocks (header keys,
+/// camera blocks, warp blocks), then the cross-checks between blocks; the blocks' own
+/// readers (`parse_warp`, the camera block) are separate functions.
+///
 /// # Errors
 /// [`LoadError::Invalid`] naming the line and the field: an unknown `Version`, a missing
 /// required field, a value that is not a (finite) number, a block without its `End…`

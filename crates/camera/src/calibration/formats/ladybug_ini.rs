@@ -160,6 +160,10 @@ fn split_line(line: &str) -> Option<(String, &str)> {
 /// As [`parse`], with the informational keys, the global rotation, the image size's
 /// source and the warnings.
 ///
+/// Long (about 200 lines) for a reason: one pass reads the keys, then the file-level
+/// checks (size, global rotation) and the six cameras follow in the order of the format's
+/// description, each error naming its key and line.
+///
 /// # Errors
 /// As [`parse`].
 pub fn parse_with_info(
