@@ -65,13 +65,11 @@ use thiserror::Error;
 /// GPS proposal (`Δθ pixel resolution = 0.00167557 rad`, about 0.096°).
 pub const LADYBUG2_PIXEL_RAD: f64 = 0.001_675_57;
 
-/// Default standard deviation of the angular noise per tangent axis (radians): one
-/// Ladybug2 pixel, [`LADYBUG2_PIXEL_RAD`]. Landmark vertices picked by hand are rarely better
-/// than a pixel; set [`RefineOptions::sigma_rad`] to your own figure. No production caller
-/// uses this default (the fix, the matcher and the localizer pass their σ); it differs
-/// from the workspace's [`crate::DEFAULT_BEARING_SIGMA_RAD`] (0.1°) by 4 %, kept until the
-/// root tests that use it (`refine_pose`, `degenerate_geometry`) are re-run with 0.1°.
-pub const DEFAULT_SIGMA_RAD: f64 = LADYBUG2_PIXEL_RAD;
+/// Default standard deviation of the angular noise per tangent axis (radians): the
+/// workspace's one default bearing σ, [`crate::DEFAULT_BEARING_SIGMA_RAD`] (0.1°, about one
+/// Ladybug2 pixel, [`LADYBUG2_PIXEL_RAD`]). Set [`RefineOptions::sigma_rad`] to your own
+/// figure; the fix, the matcher and the localizer pass theirs.
+pub const DEFAULT_SIGMA_RAD: f64 = crate::DEFAULT_BEARING_SIGMA_RAD;
 
 /// Fewest correspondences accepted (three give six residuals for six unknowns).
 pub const MIN_CORRESPONDENCES: usize = 3;

@@ -69,11 +69,18 @@ impl<T, E: std::fmt::Display> OrPlot<T> for Result<T, E> {
     }
 }
 
+/// The chart context [`chart_on`] returns: Cartesian axes over the ranges `X` and `Y`.
+type Chart<'a, DB, X, Y> = ChartContext<
+    'a,
+    DB,
+    Cartesian2d<<X as AsRangedCoord>::CoordDescType, <Y as AsRangedCoord>::CoordDescType>,
+>;
+
 /// A chart on `root` (filled white first) with the look's caption, margins and ranges.
 fn chart_on<'a, DB: DrawingBackend, X: AsRangedCoord, Y: AsRangedCoord>(
     c: &Canvas<'a, DB>,
     (x, y): (X, Y),
-) -> Result<ChartContext<'a, DB, Cartesian2d<X::CoordDescType, Y::CoordDescType>>, ReportError> {
+) -> Result<Chart<'a, DB, X, Y>, ReportError> {
     c.root.fill(&WHITE).or_plot(c.what)?;
     let mut builder = ChartBuilder::on(c.root);
     if let Some(size) = c.look.caption {

@@ -675,8 +675,11 @@ fn html_without_truth_has_no_truth_rows_legend_or_heading_and_keeps_the_headline
     assert!(html.contains("\"has_truth\":false"));
 }
 
+/// A latitude, longitude (degrees) and height (metres).
+type LatLonAlt = (f64, f64, f64);
+
 /// `fixes.csv`'s rows as (frame, lat, lon, alt), `None` for a row without a visual fix.
-fn csv_positions(text: &str) -> Vec<(u64, Option<(f64, f64, f64)>)> {
+fn csv_positions(text: &str) -> Vec<(u64, Option<LatLonAlt>)> {
     let mut rd = csv::Reader::from_reader(text.as_bytes());
     let header = rd.headers().unwrap().clone();
     let col = |name: &str| header.iter().position(|h| h == name).unwrap();
