@@ -8,7 +8,9 @@
 //! valgrind --tool=callgrind --toggle-collect='*bearing_instructions::solve*' \
 //!     target/release/examples/bearing_instructions 20000 1 lut
 //! ```
-//! Arguments: `[N] [SEED] [lut|equirectangular|pinhole]` (defaults 20000, 1, lut). The LUT
+//! Arguments: `[N] [SEED] [lut|equirectangular|pinhole] [batch]` (defaults 20000, 1, lut).
+//! With `batch`, the N pixels go through one non-inlined `CameraModel::bearings_into` call
+//! (`solve_batch`; instructions per pixel = its inclusive Ir / N) instead of N calls. The LUT
 //! is built from the Ladybug2-like pinhole of `vgps::synthetic::calibration` at
 //! `EXAMPLE_LUT_STEP`; the panorama is its 2048×1024 example; pixels are uniform over the
 //! image rectangle, as in the `calibration/bearing/*` benchmarks.
@@ -23,6 +25,16 @@ use vgps::synthetic::rng;
 #[inline(never)]
 fn solve(camera: &Camera, pixel: &Vector2<f64>) -> Option<Vector3<f64>> {
     black_box(camera).try_bearing(black_box(pixel))
+}
+
+/// All pixels → bearings in one batched call, never inlined.
+#[inline(never)]
+fn solve_batch(
+    camera: &Camera,
+    pixels: &[Vector2<f64>],
+    out: &mut [Option<Vector3<f64>>],
+) -> usize {
+    black_box(camera).bearings_into(black_box(pixels), out)
 }
 
 fn main() {
@@ -49,10 +61,19 @@ fn main() {
         .collect();
     let mut sum = Vector3::zeros();
     let mut found = 0usize;
-    for p in &pixels {
-        if let Some(b) = solve(&camera, p) {
+    if args.get(4).map(String::as_str) == Some("batch") {
+        let mut out = vec![None; n];
+        solve_batch(&camera, &pixels, &mut out);
+        for b in out.iter().flatten() {
             sum += b;
             found += 1;
+        }
+    } else {
+        for p in &pixels {
+            if let Some(b) = solve(&camera, p) {
+                sum += b;
+                found += 1;
+            }
         }
     }
     println!("calls={n} found={found} sum={:.6?}", sum.as_slice());

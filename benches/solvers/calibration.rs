@@ -1,6 +1,6 @@
 //! Camera models: pixel → bearing per call, bearing → pixel, and building the LUTs of a
 //! Ladybug2-like 6 × 1024×768 rig.
-use criterion::Criterion;
+use criterion::{Criterion, Throughput};
 use nalgebra::Vector2;
 use rand::RngExt;
 use std::hint::black_box;
@@ -97,5 +97,16 @@ pub fn benches(c: &mut Criterion) {
                 .collect::<Result<Vec<_>, _>>()
         })
     });
+    // The same pixels through one `bearings_into` call per batch of PIXELS: criterion's
+    // time / PIXELS is the time per pixel (last: the throughput setting stays).
+    group.sample_size(50);
+    for (name, camera) in cameras.iter().filter(|(name, _)| name.ends_with("lut")) {
+        let pixels = random_pixels(camera, 21);
+        let mut out = vec![None; PIXELS];
+        group.throughput(Throughput::Elements(PIXELS as u64));
+        group.bench_function(format!("bearings_into_{PIXELS}/{name}"), |b| {
+            b.iter(|| camera.bearings_into(black_box(&pixels), &mut out))
+        });
+    }
     group.finish();
 }

@@ -80,6 +80,12 @@ impl CameraModel for Camera {
         dispatch!(self, m => m.try_bearing(pixel))
     }
 
+    /// One dispatch for the whole batch, then the model's own loop.
+    #[inline]
+    fn bearings_into(&self, pixels: &[Pixel], out: &mut [Option<Vector3<f64>>]) -> usize {
+        dispatch!(self, m => m.bearings_into(pixels, out))
+    }
+
     #[inline]
     fn try_pixel(&self, bearing: &Vector3<f64>) -> Option<Pixel> {
         dispatch!(self, m => m.try_pixel(bearing))

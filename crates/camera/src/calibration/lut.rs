@@ -381,11 +381,11 @@ impl Lut {
         let (i, t, _) = self.u_axis.locate(pixel.x);
         let (j, r, _) = self.v_axis.locate(pixel.y);
         let base = j * self.cols + i;
-        // Two nodes per slice: two bounds checks instead of four.
-        let top_nodes = &self.params.bearings[base..][..2];
-        let bottom_nodes = &self.params.bearings[base + self.cols..][..2];
-        let (b00, b10) = (to_f64(&top_nodes[0]), to_f64(&top_nodes[1]));
-        let (b01, b11) = (to_f64(&bottom_nodes[0]), to_f64(&bottom_nodes[1]));
+        // One window from the cell's first node to its last: one bounds check instead of
+        // four (the indices inside are then provably in range).
+        let cell = &self.params.bearings[base..][..self.cols + 2];
+        let (b00, b10) = (to_f64(&cell[0]), to_f64(&cell[1]));
+        let (b01, b11) = (to_f64(&cell[self.cols]), to_f64(&cell[self.cols + 1]));
         let top = b00 + (b10 - b00) * t;
         let bottom = b01 + (b11 - b01) * t;
         top + (bottom - top) * r

@@ -159,6 +159,37 @@ pub trait CameraModel {
     /// The unit bearing (camera frame) of a pixel, or `None` outside the valid image.
     fn try_bearing(&self, pixel: &Pixel) -> Option<Vector3<f64>>;
 
+    /// Pixel → bearing for many pixels: `out[k]` becomes
+    /// [`try_bearing`](Self::try_bearing)`(&pixels[k])`, for `k` below the shorter of the two
+    /// lengths (the rest of the longer slice is left as it is). Returns how many of those
+    /// pixels have a bearing.
+    ///
+    /// The results are those of `try_bearing`, bit for bit; a loop over one model is cheaper
+    /// per pixel than calls through [`Camera`] (one dispatch per batch, and successive
+    /// pixels' table reads overlap).
+    ///
+    /// # Example
+    /// ```
+    /// use nalgebra::Vector2;
+    /// use vgps_camera::calibration::{CameraModel, Pinhole, PinholeParams};
+    /// let camera = Pinhole::new(PinholeParams::ideal(640, 480, 500.0, 500.0, 319.5, 239.5))?;
+    /// let pixels = [Vector2::new(319.5, 239.5), Vector2::new(-3.0, 0.0)];
+    /// let mut bearings = [None; 2];
+    /// assert_eq!(camera.bearings_into(&pixels, &mut bearings), 1);
+    /// assert_eq!(bearings[0], camera.try_bearing(&pixels[0]));
+    /// assert_eq!(bearings[1], None); // outside the image
+    /// # Ok::<(), vgps_camera::calibration::CalibrationError>(())
+    /// ```
+    #[inline]
+    fn bearings_into(&self, pixels: &[Pixel], out: &mut [Option<Vector3<f64>>]) -> usize {
+        let mut found = 0;
+        for (pixel, bearing) in pixels.iter().zip(out.iter_mut()) {
+            *bearing = self.try_bearing(pixel);
+            found += usize::from(bearing.is_some());
+        }
+        found
+    }
+
     /// The pixel that sees a direction (any finite non-zero length), or `None` when the
     /// direction is outside the model's domain or its pixel is outside the valid image.
     fn try_pixel(&self, bearing: &Vector3<f64>) -> Option<Pixel>;
