@@ -304,6 +304,45 @@ fn read_chunk(
         return;
     }
     let compression = header.compression.clone();
+    // The `mcap` crate (0.26) panics on a chunk whose inner record claims a length within 9
+    // bytes of `u64::MAX` (its `9 + len` wraps), compressed or not. So a chunk is decompressed
+    // here (zstd, lz4; bounded by its header's size), its record framing checked, and the
+    // crate reads it as an uncompressed chunk (which still checks the CRC).
+    let plain = match decompress_chunk(&compression, data, header.uncompressed_size) {
+        Ok(plain) => plain,
+        Err(reason) => {
+            summary.bad_chunks += 1;
+            let what = if compression.is_empty() {
+                "uncompressed"
+            } else {
+                &compression
+            };
+            summary.problem(record, format!("chunk ({what}): {reason}; skipped"));
+            return;
+        }
+    };
+    let (header, data) = match &plain {
+        Some(plain) => {
+            if let Err(reason) = check_chunk_framing(plain) {
+                summary.bad_chunks += 1;
+                let what = if compression.is_empty() {
+                    "uncompressed"
+                } else {
+                    &compression
+                };
+                summary.problem(record, format!("chunk ({what}): {reason}; skipped"));
+                return;
+            }
+            let header = mcap::records::ChunkHeader {
+                compression: String::new(),
+                compressed_size: plain.len() as u64,
+                uncompressed_size: plain.len() as u64,
+                ..header
+            };
+            (header, &plain[..])
+        }
+        None => (header, data),
+    };
     let reader = match mcap::read::ChunkReader::new(header, data) {
         Ok(r) => r,
         Err(e) => {
@@ -331,6 +370,83 @@ fn read_chunk(
     for r in &records {
         handle(record, r, channels, summary, on_message);
     }
+}
+
+/// The records of a chunk, decompressed: borrowed when not compressed, `None` for a
+/// compression other than zstd and lz4 (left to the `mcap` crate, which refuses it). The
+/// output is bounded: more bytes than `expected` (the header's size) is an error.
+fn decompress_chunk<'d>(
+    compression: &str,
+    data: &'d [u8],
+    expected: u64,
+) -> Result<Option<std::borrow::Cow<'d, [u8]>>, String> {
+    let mut out = Vec::new();
+    let bound = expected.saturating_add(1);
+    let read = match compression {
+        "" => {
+            return if data.len() as u64 == expected {
+                Ok(Some(std::borrow::Cow::Borrowed(data)))
+            } else {
+                Err(format!(
+                    "{} byte(s) of records, its header says {expected}",
+                    data.len()
+                ))
+            };
+        }
+        "zstd" => {
+            zstd::stream::read::Decoder::new(data).and_then(|d| d.take(bound).read_to_end(&mut out))
+        }
+        "lz4" => lz4::Decoder::new(data).and_then(|d| d.take(bound).read_to_end(&mut out)),
+        _ => return Ok(None),
+    };
+    read.map_err(|e| format!("cannot decompress: {e}"))?;
+    if out.len() as u64 != expected {
+        let more = if out.len() as u64 > expected {
+            "more than "
+        } else {
+            ""
+        };
+        let got = if more.is_empty() {
+            out.len() as u64
+        } else {
+            expected
+        };
+        return Err(format!(
+            "decompresses to {more}{got} byte(s), its header says {expected}"
+        ));
+    }
+    Ok(Some(std::borrow::Cow::Owned(out)))
+}
+
+/// Checks that the records of an uncompressed chunk (`opcode: u8`, `length: u64` little
+/// endian, then `length` bytes) tile `data` exactly; the error names the first bad record
+/// (its index in the chunk and byte offset).
+fn check_chunk_framing(data: &[u8]) -> Result<(), String> {
+    const HEADER: usize = 9;
+    let mut at = 0usize;
+    let mut index = 0u64;
+    while at < data.len() {
+        let rest = data.len() - at;
+        let Some(head) = data.get(at..at + HEADER) else {
+            return Err(format!(
+                "record {index} at byte {at}: {rest} byte(s) left, fewer than a record header"
+            ));
+        };
+        let mut len_bytes = [0u8; 8];
+        len_bytes.copy_from_slice(&head[1..]);
+        let len = u64::from_le_bytes(len_bytes);
+        let available = (rest - HEADER) as u64;
+        if len > available {
+            return Err(format!(
+                "record {index} (opcode 0x{:02x}) at byte {at}: length {len} exceeds the {available} byte(s) left in the chunk",
+                head[0]
+            ));
+        }
+        // `len <= available < usize::MAX`: no overflow.
+        at += HEADER + len as usize;
+        index += 1;
+    }
+    Ok(())
 }
 
 fn handle(
@@ -468,6 +584,123 @@ mod tests {
         assert!(times.len() >= 45, "only the bad chunk is lost: {times:?}");
         assert_eq!(s.bad_chunks, 1);
         assert!(s.messages()[0].contains("CRC"), "{:?}", s.messages());
+    }
+
+    /// An MCAP of one uncompressed chunk whose records are `records` (CRC 0: not checked).
+    fn one_uncompressed_chunk(records: &[u8]) -> Vec<u8> {
+        let mut chunk = Vec::new();
+        chunk.extend_from_slice(&0u64.to_le_bytes()); // message_start_time
+        chunk.extend_from_slice(&0u64.to_le_bytes()); // message_end_time
+        chunk.extend_from_slice(&(records.len() as u64).to_le_bytes()); // uncompressed_size
+        chunk.extend_from_slice(&0u32.to_le_bytes()); // uncompressed_crc
+        chunk.extend_from_slice(&0u32.to_le_bytes()); // compression: ""
+        chunk.extend_from_slice(&(records.len() as u64).to_le_bytes());
+        chunk.extend_from_slice(records);
+        let mut bytes = MAGIC.to_vec();
+        bytes.push(0x06);
+        bytes.extend_from_slice(&(chunk.len() as u64).to_le_bytes());
+        bytes.extend_from_slice(&chunk);
+        bytes
+    }
+
+    /// An MCAP of one chunk compressed with `name`, holding `packed` for `size` bytes of
+    /// records.
+    fn one_packed_chunk(name: &str, packed: &[u8], size: u64) -> Vec<u8> {
+        let mut chunk = Vec::new();
+        chunk.extend_from_slice(&0u64.to_le_bytes());
+        chunk.extend_from_slice(&0u64.to_le_bytes());
+        chunk.extend_from_slice(&size.to_le_bytes());
+        chunk.extend_from_slice(&0u32.to_le_bytes());
+        chunk.extend_from_slice(&(name.len() as u32).to_le_bytes());
+        chunk.extend_from_slice(name.as_bytes());
+        chunk.extend_from_slice(&(packed.len() as u64).to_le_bytes());
+        chunk.extend_from_slice(packed);
+        let mut bytes = MAGIC.to_vec();
+        bytes.push(0x06);
+        bytes.extend_from_slice(&(chunk.len() as u64).to_le_bytes());
+        bytes.extend_from_slice(&chunk);
+        bytes
+    }
+
+    fn zstd_pack(b: &[u8]) -> Vec<u8> {
+        zstd::stream::encode_all(b, 3).unwrap()
+    }
+
+    fn lz4_pack(b: &[u8]) -> Vec<u8> {
+        use std::io::Write;
+        let mut e = lz4::EncoderBuilder::new().build(Vec::new()).unwrap();
+        e.write_all(b).unwrap();
+        let (out, result) = e.finish();
+        result.unwrap();
+        out
+    }
+
+    /// The same framing fault inside a zstd or lz4 chunk: before the fix the `mcap` crate
+    /// panicked in its decompressing reader (`linear_reader.rs:83`).
+    #[test]
+    fn a_compressed_chunk_record_claiming_u64_max_bytes_is_not_a_panic() {
+        let packers: [(&str, fn(&[u8]) -> Vec<u8>); 2] = [("zstd", zstd_pack), ("lz4", lz4_pack)];
+        for (name, pack) in packers {
+            for len in [u64::MAX, u64::MAX - 8, 1 << 40] {
+                let mut records = vec![0x05];
+                records.extend_from_slice(&len.to_le_bytes());
+                let bytes = one_packed_chunk(name, &pack(&records), records.len() as u64);
+                let (times, s) = read(&bytes);
+                assert!(times.is_empty());
+                assert_eq!((s.bad_chunks, s.chunks), (1, 0), "{s:?}");
+                let m = s.messages();
+                assert!(
+                    m[0].starts_with(&format!(
+                        "x.mcap: record 0: chunk ({name}): record 0 (opcode 0x05) at byte 0: length"
+                    )),
+                    "{m:?}"
+                );
+            }
+            // A header that understates the decompressed size: refused, bounded.
+            let bytes = one_packed_chunk(name, &pack(&[0u8; 4096]), 100);
+            let (_, s) = read(&bytes);
+            assert_eq!(s.bad_chunks, 1, "{s:?}");
+            assert!(
+                s.messages()[0]
+                    .contains("decompresses to more than 100 byte(s), its header says 100"),
+                "{:?}",
+                s.messages()
+            );
+            // Garbage instead of compressed data.
+            let (_, s) = read(&one_packed_chunk(name, b"not compressed at all", 9));
+            assert!(
+                s.messages()[0].contains("cannot decompress"),
+                "{:?}",
+                s.messages()
+            );
+        }
+    }
+
+    /// Found by the `mcap_read` fuzz target (docs/fuzzing.md): a chunk record of length
+    /// `u64::MAX` made the `mcap` crate's chunk reader panic (`9 + len` wrapped to 8).
+    #[test]
+    fn a_chunk_record_claiming_u64_max_bytes_is_a_bad_chunk_not_a_panic() {
+        for len in [u64::MAX, u64::MAX - 8, u64::MAX - 7, 1 << 40, 1] {
+            let mut records = vec![0x05];
+            records.extend_from_slice(&len.to_le_bytes());
+            let (times, s) = read(&one_uncompressed_chunk(&records));
+            assert!(times.is_empty());
+            assert_eq!((s.bad_chunks, s.chunks), (1, 0), "{s:?}");
+            let m = s.messages();
+            assert!(
+                m[0].starts_with("x.mcap: record 0: chunk (uncompressed): record 0 (opcode 0x05) at byte 0: length")
+                    && m[0].ends_with("exceeds the 0 byte(s) left in the chunk; skipped"),
+                "{m:?}"
+            );
+        }
+        // A cut header and a well-framed empty chunk.
+        let (_, s) = read(&one_uncompressed_chunk(&[0x05, 0, 0]));
+        assert!(
+            s.messages()[0].contains("fewer than a record header"),
+            "{s:?}"
+        );
+        let (_, s) = read(&one_uncompressed_chunk(&[]));
+        assert_eq!((s.bad_chunks, s.chunks), (0, 1), "{s:?}");
     }
 
     #[test]
