@@ -509,6 +509,24 @@ mod tests {
     }
 
     #[test]
+    fn reading_stops_when_the_callback_says_so() {
+        let bytes = sample(50, Some(mcap::Compression::Zstd));
+        let mut times = Vec::new();
+        let s = read_mcap_until(Path::new("x.mcap"), &bytes[..], &mut |m| {
+            times.push(m.log_time);
+            if m.log_time == 7 {
+                ControlFlow::Break(())
+            } else {
+                ControlFlow::Continue(())
+            }
+        })
+        .unwrap();
+        assert_eq!(times, (0..8).collect::<Vec<_>>());
+        assert_eq!(s.messages, 8);
+        assert!(s.problems.is_empty() && !s.truncated);
+    }
+
+    #[test]
     fn not_an_mcap_is_an_error() {
         let e = read_mcap(Path::new("a.bag"), &b"#ROSBAG V2.0\n"[..], &mut |_| {}).unwrap_err();
         assert!(e.to_string().starts_with("a.bag: not an MCAP file"));
