@@ -196,9 +196,9 @@ pub fn mcap_to_temp_drive(
         .map_err(CliError::Output)?;
     let imported = import_mcap(file, dir.path(), &options).map_err(input_error)?;
     print_warnings(&imported.report, err);
-    let images = imported.recording_images.ok_or_else(|| {
-        CliError::Internal("the MCAP import gave no image places".to_string())
-    })?;
+    let images = imported
+        .recording_images
+        .ok_or_else(|| CliError::Internal("the MCAP import gave no image places".to_string()))?;
     Ok(McapInput { dir, images })
 }
 

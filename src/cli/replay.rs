@@ -15,10 +15,10 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use vgps_camera::imaging::ImagingError;
-use vgps_import::mcap_import::{FrameStream, RecordingImages};
 use vgps_core::localizer::{
     Frame, GnssPosition, LandmarkMap, Localizer, LocalizerFix, LocalizerOptions,
 };
+use vgps_import::mcap_import::{FrameStream, RecordingImages};
 use vgps_replay::drive::gnss::gnss_at;
 use vgps_replay::drive::{Drive, FrameStatus};
 use vgps_replay::frame_images::ImageDetector;
@@ -151,7 +151,11 @@ pub fn run(
     {
         let note = match recording {
             Some(r) => super::image_size::resolve_with(&mut drive, settings.image_size, &|n| {
-                (r.contains(n), r.dimensions(n), r.describe(n).display().to_string())
+                (
+                    r.contains(n),
+                    r.dimensions(n),
+                    r.describe(n).display().to_string(),
+                )
             })?,
             None => super::image_size::resolve(&mut drive, settings.image_size)?,
         };

@@ -474,7 +474,9 @@ fn raw_to_png(img: &ros_decode::RawImage<'_>) -> Result<Vec<u8>, String> {
 
 /// The colour type, channels, bytes per sample and whether red and blue are swapped of a
 /// raw image, after checking its encoding, size and data length.
-fn raw_layout(img: &ros_decode::RawImage<'_>) -> Result<(ExtendedColorType, u64, u64, bool), String> {
+fn raw_layout(
+    img: &ros_decode::RawImage<'_>,
+) -> Result<(ExtendedColorType, u64, u64, bool), String> {
     let (color, channels, bytes, swap_rb) = match img.encoding {
         "mono8" | "8UC1" => (ExtendedColorType::L8, 1, 1, false),
         "mono16" | "16UC1" => (ExtendedColorType::L16, 1, 2, false),

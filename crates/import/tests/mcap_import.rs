@@ -268,7 +268,10 @@ fn images_left_in_the_recording_come_back_frame_by_frame_as_the_files_would_hold
     let shown = recording.describe(a.frames()[0].images[0].as_ref().unwrap());
     assert!(
         shown.display().to_string().contains("run.mcap: record ")
-            && shown.display().to_string().ends_with("(/ladybug/cam0/image/compressed)"),
+            && shown
+                .display()
+                .to_string()
+                .ends_with("(/ladybug/cam0/image/compressed)"),
         "{shown:?}"
     );
     // A stream dropped half-way stops its reader (no hang, no panic).
