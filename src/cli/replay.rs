@@ -526,7 +526,7 @@ fn detect_frame(
     drive: &Drive,
     frame: &vgps_replay::drive::FrameRecord,
     detector: &ImageDetector,
-    load: &mut dyn FnMut(usize, &str) -> Result<(PathBuf, Vec<u8>), ImagingError>,
+    load: &mut vgps_replay::frame_images::ImageLoader<'_>,
 ) -> FrameDetections<'static> {
     if frame.images.iter().all(Option::is_none) {
         return FrameDetections::Bad {

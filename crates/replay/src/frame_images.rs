@@ -262,6 +262,10 @@ pub fn detect_frame_images(
     })
 }
 
+/// Where [`detect_frame_images_from`] takes an image: `(camera, name)` → the path that names
+/// it in messages and its bytes.
+pub type ImageLoader<'a> = dyn FnMut(usize, &str) -> Result<(PathBuf, Vec<u8>), ImagingError> + 'a;
+
 /// [`detect_frame_images`] with the images' bytes from `load(camera, name)` instead of the
 /// drive directory: it returns the path that names the image in messages and the bytes a
 /// drive file would hold (`vgps replay run.mcap` reads them from the recording). The bytes
@@ -271,7 +275,7 @@ pub fn detect_frame_images_from(
     frame: &FrameRecord,
     rig: &Rig,
     detector: &ImageDetector,
-    load: &mut dyn FnMut(usize, &str) -> Result<(PathBuf, Vec<u8>), ImagingError>,
+    load: &mut ImageLoader<'_>,
 ) -> FrameImageResult {
     let mut result = FrameImageResult {
         frame: frame.frame,
