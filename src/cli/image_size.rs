@@ -72,6 +72,28 @@ pub fn header_dimensions(path: &Path) -> Option<(u32, u32)> {
 /// images but none of their headers gives a size (then `--image-size` is needed), or when
 /// the calibration cannot take the size.
 pub fn resolve(drive: &mut Drive, given: Option<(u32, u32)>) -> Result<Option<String>, CliError> {
+    let dir = drive.dir().to_path_buf();
+    resolve_with(drive, given, &|name| {
+        let path = dir.join(name);
+        // A missing image is reported per frame later; an existing one without a PNG/JPEG
+        // header cannot give the size.
+        let size = header_dimensions(&path);
+        let exists = size.is_some() || path.is_file();
+        (exists, size, path.display().to_string())
+    })
+}
+
+/// [`resolve`] with each image's header from `header(name)`: whether the image exists, the
+/// size its header gives, and how messages name it (`vgps replay run.mcap` takes them from
+/// the recording).
+///
+/// # Errors
+/// As [`resolve`].
+pub fn resolve_with(
+    drive: &mut Drive,
+    given: Option<(u32, u32)>,
+    header: &dyn Fn(&str) -> (bool, Option<(u32, u32)>, String),
+) -> Result<Option<String>, CliError> {
     let unbounded: Vec<usize> = (0..drive.rig().len())
         .filter(|&i| drive.rig().cameras()[i].model.image_size() == (0, 0))
         .collect();
@@ -97,12 +119,10 @@ pub fn resolve(drive: &mut Drive, given: Option<(u32, u32)>) -> Result<Option<St
                     let Some(Some(name)) = frame.images.get(camera) else {
                         continue;
                     };
-                    let path = drive.dir().join(name);
-                    let Some(size) = header_dimensions(&path) else {
-                        // A missing image is reported per frame later; an existing one
-                        // without a PNG/JPEG header cannot give the size.
-                        if path.is_file() {
-                            unsized_image.get_or_insert_with(|| name.clone());
+                    let (exists, size, shown) = header(name);
+                    let Some(size) = size else {
+                        if exists {
+                            unsized_image.get_or_insert(shown);
                         }
                         continue;
                     };
@@ -126,7 +146,7 @@ pub fn resolve(drive: &mut Drive, given: Option<(u32, u32)>) -> Result<Option<St
                         "the calibration names no image size for camera(s) {unbounded:?} and \
                          no image of theirs gives one in a PNG or JPEG header (e.g. {}): \
                          give --image-size WxH",
-                        drive.dir().join(name).display()
+                        name
                     )));
                 }
                 (None, None) => return Ok(None),

@@ -7,7 +7,9 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use vgps_import::drive_out::{DEFAULT_STAMP_TOLERANCE_S, ImportError, ImportReport};
 use vgps_import::folders::{FolderImportOptions, import_folders};
-use vgps_import::mcap_import::{McapImportOptions, import_mcap, read_topic_map};
+use vgps_import::mcap_import::{
+    ImageOutput, McapImportOptions, RecordingImages, import_mcap, read_topic_map,
+};
 use vgps_import::nclt::{NcltImportOptions, import_nclt};
 
 fn parse_tolerance(text: &str) -> Result<f64, String> {
@@ -141,7 +143,7 @@ fn mcap_options(
     landmarks: Option<PathBuf>,
     topics: Option<&Path>,
     stamp_tolerance_s: f64,
-    durable_images: bool,
+    images: ImageOutput,
 ) -> Result<McapImportOptions, CliError> {
     Ok(McapImportOptions {
         rig,
@@ -151,12 +153,21 @@ fn mcap_options(
             .transpose()
             .map_err(input_error)?,
         stamp_tolerance_s,
-        durable_images,
+        images,
     })
 }
 
-/// Imports `file` into a temporary drive for `vgps replay run.mcap`; the directory is
-/// removed when the returned value is dropped.
+/// A recording opened for `vgps replay run.mcap`: a temporary drive of its small files
+/// (manifest, calibration, landmarks, frames, `gnss.nmea`, `imu.csv`), removed when this
+/// drops, and where each frame's images are in the recording (no image file is written).
+pub struct McapInput {
+    /// The temporary drive directory.
+    pub dir: tempfile::TempDir,
+    /// The frames' images in the recording.
+    pub images: RecordingImages,
+}
+
+/// Reads `file` into an [`McapInput`] for `vgps replay run.mcap`.
 ///
 /// # Errors
 /// [`CliError::Calibration`] (exit 2) without `--rig` or when the file cannot be read.
@@ -164,7 +175,7 @@ pub fn mcap_to_temp_drive(
     file: &Path,
     args: &McapInputArgs,
     err: &mut dyn Write,
-) -> Result<tempfile::TempDir, CliError> {
+) -> Result<McapInput, CliError> {
     let rig = args.rig.clone().ok_or_else(|| {
         CliError::Calibration(format!(
             "{}: an MCAP recording needs --rig CAL (the rig calibration)",
@@ -176,8 +187,8 @@ pub fn mcap_to_temp_drive(
         args.landmarks.clone(),
         args.topics.as_deref(),
         args.stamp_tolerance_s.unwrap_or(DEFAULT_STAMP_TOLERANCE_S),
-        // A temporary drive, removed after the replay: no fsync per image.
-        false,
+        // The replay reads the images from the recording: none is written.
+        ImageOutput::InRecording,
     )?;
     let dir = tempfile::Builder::new()
         .prefix("vgps-mcap-")
@@ -185,7 +196,10 @@ pub fn mcap_to_temp_drive(
         .map_err(CliError::Output)?;
     let imported = import_mcap(file, dir.path(), &options).map_err(input_error)?;
     print_warnings(&imported.report, err);
-    Ok(dir)
+    let images = imported
+        .recording_images
+        .ok_or_else(|| CliError::Internal("the MCAP import gave no image places".to_string()))?;
+    Ok(McapInput { dir, images })
 }
 
 /// Runs `vgps import`.
@@ -205,7 +219,7 @@ pub fn run(args: &ImportArgs, out: &mut dyn Write, err: &mut dyn Write) -> Resul
                 common.landmarks.clone(),
                 topics.as_deref(),
                 common.stamp_tolerance_s,
-                true,
+                ImageOutput::Files,
             )?;
             let imported = import_mcap(file, &common.out, &options).map_err(input_error)?;
             let m = &imported.mcap;

@@ -12,10 +12,13 @@
 use super::{CliError, ReplaySettings};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+use vgps_camera::imaging::ImagingError;
 use vgps_core::localizer::{
     Frame, GnssPosition, LandmarkMap, Localizer, LocalizerFix, LocalizerOptions,
 };
+use vgps_import::mcap_import::{FrameStream, RecordingImages};
 use vgps_replay::drive::gnss::gnss_at;
 use vgps_replay::drive::{Drive, FrameStatus};
 use vgps_replay::frame_images::ImageDetector;
@@ -138,15 +141,27 @@ pub fn run(
     };
     let drive_dir = imported
         .as_ref()
-        .map_or(settings.drive.clone(), |d| d.path().to_path_buf());
+        .map_or(settings.drive.clone(), |d| d.dir.path().to_path_buf());
+    let recording = imported.as_ref().map(|d| &d.images);
     let mut drive = Drive::open(&drive_dir, settings.strictness)
         .map_err(|e| CliError::Calibration(e.to_string()))?;
-    if (settings.from_images
+    if settings.from_images
         || drive.manifest().detections.is_none()
-        || settings.image_size.is_some())
-        && let Some(note) = super::image_size::resolve(&mut drive, settings.image_size)?
+        || settings.image_size.is_some()
     {
-        let _ = writeln!(err, "vgps: {note}");
+        let note = match recording {
+            Some(r) => super::image_size::resolve_with(&mut drive, settings.image_size, &|n| {
+                (
+                    r.contains(n),
+                    r.dimensions(n),
+                    r.describe(n).display().to_string(),
+                )
+            })?,
+            None => super::image_size::resolve(&mut drive, settings.image_size)?,
+        };
+        if let Some(note) = note {
+            let _ = writeln!(err, "vgps: {note}");
+        }
     }
     settings.gnss.apply(&mut drive, err)?;
     warn_about_drive(&drive, &settings.drive, err);
@@ -186,8 +201,14 @@ pub fn run(
     let detector = ImageDetector::new(settings.detector, drive.rig());
     let mut live = super::robot_out::LiveStream::start(&settings.robot, err);
     let mut used = std::collections::BTreeMap::new();
+    // From a recording, a reader thread yields the frames' images in order, a batch ahead.
+    let stream = recording
+        .filter(|_| from_images)
+        .map(|r| std::sync::Mutex::new(r.stream(BATCH_FRAMES)));
     for batch in frames.chunks(BATCH_FRAMES) {
-        let detections: Vec<FrameDetections> = if from_images {
+        let detections: Vec<FrameDetections> = if let (Some(r), Some(s)) = (recording, &stream) {
+            detect_recording_batch(&drive, batch, settings.threads, &detector, r, s)
+        } else if from_images {
             detect_batch(&drive, batch, settings.threads, &detector)
         } else {
             file_detections(&drive, batch, err)
@@ -386,7 +407,15 @@ fn detect_batch(
                 let handle = scope.spawn(move || {
                     frames
                         .iter()
-                        .map(|f| detect_frame(drive, f, detector))
+                        .map(|f| {
+                            detect_frame(drive, f, detector, &mut |_, name| {
+                                let path = drive.dir().join(name);
+                                match std::fs::read(&path) {
+                                    Ok(bytes) => Ok((path, bytes)),
+                                    Err(source) => Err(ImagingError::Io { path, source }),
+                                }
+                            })
+                        })
                         .collect::<Vec<_>>()
                 });
                 (handle, frames.len())
@@ -409,11 +438,95 @@ fn detect_batch(
     })
 }
 
-/// Decodes and detects one frame's images.
+/// [`detect_batch`] with the images read from the recording (`vgps replay run.mcap`):
+/// `threads` workers take the batch's frames from `stream` one at a time, in order, so at
+/// most a few frames' images are in memory.
+fn detect_recording_batch(
+    drive: &Drive,
+    batch: &[vgps_replay::drive::FrameRecord],
+    threads: usize,
+    detector: &ImageDetector,
+    recording: &RecordingImages,
+    stream: &Mutex<FrameStream>,
+) -> Vec<FrameDetections<'static>> {
+    let taken = AtomicUsize::new(0);
+    let worker = || {
+        let mut done = Vec::new();
+        loop {
+            let (i, images) = {
+                let mut stream = match stream.lock() {
+                    Ok(s) => s,
+                    Err(poisoned) => poisoned.into_inner(),
+                };
+                let i = taken.fetch_add(1, Ordering::Relaxed);
+                if i >= batch.len() {
+                    break;
+                }
+                (i, stream.next())
+            };
+            let frame = &batch[i];
+            let detections = match images {
+                Some(mut images) if images.frame == frame.frame => {
+                    detect_frame(drive, frame, detector, &mut |camera, name| {
+                        let path = recording.describe(name);
+                        match images.images.get_mut(camera).and_then(Option::take) {
+                            Some(Ok(bytes)) => Ok((path, bytes)),
+                            Some(Err(why)) => Err(ImagingError::Io {
+                                path,
+                                source: std::io::Error::other(why),
+                            }),
+                            None => Err(ImagingError::Io {
+                                path,
+                                source: std::io::ErrorKind::NotFound.into(),
+                            }),
+                        }
+                    })
+                }
+                other => FrameDetections::Bad {
+                    message: format!(
+                        "{}: the images of frame {} could not be read again (got {})",
+                        recording.file().display(),
+                        frame.frame,
+                        other.map_or("none".to_string(), |o| format!("frame {}", o.frame))
+                    ),
+                    unusable_images: None,
+                },
+            };
+            done.push((i, detections));
+        }
+        done
+    };
+    let mut all: Vec<(usize, FrameDetections<'static>)> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..threads.clamp(1, batch.len().max(1)))
+            .map(|_| scope.spawn(worker))
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().unwrap_or_default())
+            .collect()
+    });
+    all.sort_by_key(|(i, _)| *i);
+    // One result per frame even if a thread failed, so frames stay aligned.
+    let mut out = Vec::with_capacity(batch.len());
+    let mut results = all.into_iter().peekable();
+    for i in 0..batch.len() {
+        match results.next_if(|(j, _)| *j == i) {
+            Some((_, d)) => out.push(d),
+            None => out.push(FrameDetections::Bad {
+                message: "detection thread failed".into(),
+                unusable_images: None,
+            }),
+        }
+    }
+    out
+}
+
+/// Decodes and detects one frame's images, read by `load(camera, name)`.
 fn detect_frame(
     drive: &Drive,
     frame: &vgps_replay::drive::FrameRecord,
     detector: &ImageDetector,
+    load: &mut vgps_replay::frame_images::ImageLoader<'_>,
 ) -> FrameDetections<'static> {
     if frame.images.iter().all(Option::is_none) {
         return FrameDetections::Bad {
@@ -422,7 +535,7 @@ fn detect_frame(
         };
     }
     let result =
-        vgps_replay::frame_images::detect_frame_images(drive.dir(), frame, drive.rig(), detector);
+        vgps_replay::frame_images::detect_frame_images_from(frame, drive.rig(), detector, load);
     let unusable_images = Some(u32::try_from(result.problems.len()).unwrap_or(u32::MAX));
     if result.is_unusable() {
         FrameDetections::Bad {

@@ -2,9 +2,11 @@
 //!
 //! Read are `sensor_msgs/msg/CompressedImage` and `sensor_msgs/msg/Image` (one topic per
 //! camera), `sensor_msgs/msg/NavSatFix` (the satellite GPS) and `sensor_msgs/msg/Imu`;
-//! every other type (`CameraInfo`, `/tf`, …) is counted and ignored. Each image is written
-//! under `images/cam<k>/<stamp_ns>.<ext>` (a compressed image as it is, a raw image as PNG)
-//! and the images are grouped into frames by stamp ([`assemble_frames`]).
+//! every other type (`CameraInfo`, `/tf`, …) is counted and ignored. Each image is named
+//! `images/cam<k>/<stamp_ns>.<ext>` and the images are grouped into frames by stamp
+//! ([`assemble_frames`]). With [`ImageOutput::Files`] each is written there (a compressed
+//! image as it is, a raw image as PNG); with [`ImageOutput::InRecording`] none is written and
+//! [`RecordingImages::stream`] reads the bytes back from the recording frame by frame.
 //!
 //! # Cameras
 //! A topic's camera index comes from a mapping file (`topic,camera` CSV) when one is
@@ -21,14 +23,16 @@ use crate::drive_out::{
     DriveContent, ImportError, ImportReport, ImuRow, NavSatRow, StampedImage, assemble_frames,
     create_dir, seconds_of_ns, write_drive,
 };
-use crate::mcap_read::{McapMessage, McapReadSummary, read_mcap_file};
+use crate::mcap_read::{McapMessage, McapReadSummary, read_mcap_file, read_mcap_file_until};
 use crate::ros_decode;
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
 use image::{ExtendedColorType, ImageEncoder};
 use std::collections::{BTreeMap, HashMap, HashSet};
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use vgps_geometry::geo::Geodetic;
-use vgps_replay::drive::{GnssFix, GnssRecord, MAX_IMAGE_COLUMNS, Manifest};
+use vgps_replay::drive::{FrameRecord, GnssFix, GnssRecord, MAX_IMAGE_COLUMNS, Manifest};
 
 /// Largest raw image accepted, pixels (100 megapixels).
 pub const MAX_RAW_PIXELS: u64 = 100_000_000;
@@ -44,10 +48,22 @@ pub struct McapImportOptions {
     pub topics: Option<BTreeMap<String, usize>>,
     /// Largest spread of the stamps of one frame, seconds.
     pub stamp_tolerance_s: f64,
-    /// Write each image durably ([`vgps_io::write_atomic`]: a temporary file, fsync, rename,
-    /// fsync of the directory). `false` for a drive that only lives as long as one replay
-    /// (`vgps replay run.mcap`): two fsyncs per image are most of an import's time.
-    pub durable_images: bool,
+    /// Where the images go: files of the drive, or left in the recording.
+    pub images: ImageOutput,
+}
+
+/// Where an MCAP import puts the images.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum ImageOutput {
+    /// Each image is a file of the drive, written durably ([`vgps_io::write_atomic`]), as
+    /// `vgps import mcap` keeps it.
+    #[default]
+    Files,
+    /// No image file is written: the frames name each image as [`ImageOutput::Files`]
+    /// would (`images/cam<k>/<stamp>.<ext>`), but only [`McapImport::recording_images`]
+    /// says where it is in the recording, and [`RecordingImages::stream`] reads the bytes
+    /// back frame by frame (`vgps replay run.mcap`).
+    InRecording,
 }
 
 /// Reads a topic mapping file: CSV `topic,camera` with a header; blank lines and lines
@@ -131,8 +147,22 @@ fn kind_of(schema: &str) -> Option<Kind> {
     }
 }
 
+/// Where one image is in the recording: the ordinal of its message among the messages the
+/// reader hands over (the same on every read of the same file), its record and topic.
+#[derive(Clone, Debug)]
+struct ImageRef {
+    ordinal: u64,
+    record: u64,
+    topic: String,
+    dimensions: Option<(u32, u32)>,
+}
+
 struct State<'o> {
     out: PathBuf,
+    /// Messages seen so far (the ordinal of the next one).
+    ordinal: u64,
+    /// [`ImageOutput::InRecording`]: each image name's place in the recording.
+    refs: HashMap<String, ImageRef>,
     file: PathBuf,
     options: &'o McapImportOptions,
     images: Vec<StampedImage>,
@@ -180,6 +210,8 @@ impl State<'_> {
     }
 
     fn message(&mut self, m: &McapMessage<'_>) {
+        let ordinal = self.ordinal;
+        self.ordinal += 1;
         if self.error.is_some() {
             return;
         }
@@ -208,7 +240,7 @@ impl State<'_> {
             return;
         }
         match kind {
-            Kind::Compressed | Kind::Raw => self.image(m, kind),
+            Kind::Compressed | Kind::Raw => self.image(m, kind, ordinal),
             Kind::NavSat => self.navsat(m),
             Kind::Imu => match ros_decode::imu(m.data) {
                 Ok(imu) => {
@@ -241,7 +273,7 @@ impl State<'_> {
         }
     }
 
-    fn image(&mut self, m: &McapMessage<'_>, kind: Kind) {
+    fn image(&mut self, m: &McapMessage<'_>, kind: Kind, ordinal: u64) {
         let Some(camera) = self.camera(m.topic) else {
             let why = match &self.options.topics {
                 Some(_) => "image topic not in the topic mapping file".to_string(),
@@ -253,21 +285,34 @@ impl State<'_> {
             self.skip_topic(m.topic, why);
             return;
         };
+        let in_recording = self.options.images == ImageOutput::InRecording;
         let decoded = match kind {
             Kind::Compressed => ros_decode::compressed_image(m.data)
                 .map_err(|e| e.to_string())
                 .and_then(|img| {
                     let ext = compressed_extension(img.format, img.data)?;
-                    Ok((stamp_or_log_time(&img.header, m), ext, img.data.to_vec()))
+                    let stamp = stamp_or_log_time(&img.header, m);
+                    Ok(if in_recording {
+                        (stamp, ext, Vec::new(), bytes_dimensions(img.data))
+                    } else {
+                        (stamp, ext, img.data.to_vec(), None)
+                    })
                 }),
             _ => ros_decode::raw_image(m.data)
                 .map_err(|e| e.to_string())
                 .and_then(|img| {
-                    let png = raw_to_png(&img)?;
-                    Ok((stamp_or_log_time(&img.header, m), "png", png))
+                    let stamp = stamp_or_log_time(&img.header, m);
+                    if in_recording {
+                        // Checked now (the same checks as the conversion), converted when
+                        // the replay reads it.
+                        raw_layout(&img)?;
+                        Ok((stamp, "png", Vec::new(), Some((img.width, img.height))))
+                    } else {
+                        Ok((stamp, "png", raw_to_png(&img)?, None))
+                    }
                 }),
         };
-        let (stamp, ext, bytes) = match decoded {
+        let (stamp, ext, bytes, dimensions) = match decoded {
             Ok(x) => x,
             Err(e) => return self.warn_record(m, format!("image: {e}; skipped")),
         };
@@ -277,21 +322,28 @@ impl State<'_> {
             name = format!("images/cam{camera}/{stamp}_{k}.{ext}");
             k += 1;
         }
-        let path = self.out.join(&name);
-        if let Some(dir) = path.parent()
-            && let Err(e) = create_dir(dir)
-        {
-            self.error = Some(e);
-            return;
-        }
-        let written = if self.options.durable_images {
-            vgps_io::write_atomic(&path, &bytes)
+        if in_recording {
+            self.refs.insert(
+                name.clone(),
+                ImageRef {
+                    ordinal,
+                    record: m.record,
+                    topic: m.topic.to_string(),
+                    dimensions,
+                },
+            );
         } else {
-            std::fs::write(&path, &bytes)
-        };
-        if let Err(source) = written {
-            self.error = Some(ImportError::Write { path, source });
-            return;
+            let path = self.out.join(&name);
+            if let Some(dir) = path.parent()
+                && let Err(e) = create_dir(dir)
+            {
+                self.error = Some(e);
+                return;
+            }
+            if let Err(source) = vgps_io::write_atomic(&path, &bytes) {
+                self.error = Some(ImportError::Write { path, source });
+                return;
+            }
         }
         self.names.insert(name.clone());
         self.images.push(StampedImage {
@@ -392,28 +444,10 @@ fn compressed_extension(format: &str, data: &[u8]) -> Result<&'static str, Strin
 /// A `sensor_msgs/Image` as PNG (`mono8`, `8UC1`, `mono16`, `16UC1`, `rgb8`, `bgr8`, `rgba8`,
 /// `bgra8`).
 fn raw_to_png(img: &ros_decode::RawImage<'_>) -> Result<Vec<u8>, String> {
-    let (color, channels, bytes, swap_rb) = match img.encoding {
-        "mono8" | "8UC1" => (ExtendedColorType::L8, 1, 1, false),
-        "mono16" | "16UC1" => (ExtendedColorType::L16, 1, 2, false),
-        "rgb8" => (ExtendedColorType::Rgb8, 3, 1, false),
-        "bgr8" => (ExtendedColorType::Rgb8, 3, 1, true),
-        "rgba8" => (ExtendedColorType::Rgba8, 4, 1, false),
-        "bgra8" => (ExtendedColorType::Rgba8, 4, 1, true),
-        other => return Err(format!("raw image encoding `{other}` is not supported")),
-    };
+    let (color, channels, bytes, swap_rb) = raw_layout(img)?;
     let (w, h) = (u64::from(img.width), u64::from(img.height));
-    if w == 0 || h == 0 || w * h > MAX_RAW_PIXELS {
-        return Err(format!("raw image of {w}x{h} pixels is empty or too large"));
-    }
     let row = w * channels * bytes;
     let step = u64::from(img.step);
-    if step < row || (img.data.len() as u64) < step * (h - 1) + row {
-        return Err(format!(
-            "raw image {w}x{h} `{}` step {step}: {} data bytes are too few",
-            img.encoding,
-            img.data.len()
-        ));
-    }
     let mut pixels = Vec::with_capacity((row * h) as usize);
     for y in 0..h as usize {
         let start = y * step as usize;
@@ -438,6 +472,50 @@ fn raw_to_png(img: &ros_decode::RawImage<'_>) -> Result<Vec<u8>, String> {
     Ok(out)
 }
 
+/// The colour type, channels, bytes per sample and whether red and blue are swapped of a
+/// raw image, after checking its encoding, size and data length.
+fn raw_layout(
+    img: &ros_decode::RawImage<'_>,
+) -> Result<(ExtendedColorType, u64, u64, bool), String> {
+    let (color, channels, bytes, swap_rb) = match img.encoding {
+        "mono8" | "8UC1" => (ExtendedColorType::L8, 1, 1, false),
+        "mono16" | "16UC1" => (ExtendedColorType::L16, 1, 2, false),
+        "rgb8" => (ExtendedColorType::Rgb8, 3, 1, false),
+        "bgr8" => (ExtendedColorType::Rgb8, 3, 1, true),
+        "rgba8" => (ExtendedColorType::Rgba8, 4, 1, false),
+        "bgra8" => (ExtendedColorType::Rgba8, 4, 1, true),
+        other => return Err(format!("raw image encoding `{other}` is not supported")),
+    };
+    let (w, h) = (u64::from(img.width), u64::from(img.height));
+    if w == 0 || h == 0 || w * h > MAX_RAW_PIXELS {
+        return Err(format!("raw image of {w}x{h} pixels is empty or too large"));
+    }
+    let row = w * channels * bytes;
+    let step = u64::from(img.step);
+    if step < row || (img.data.len() as u64) < step * (h - 1) + row {
+        return Err(format!(
+            "raw image {w}x{h} `{}` step {step}: {} data bytes are too few",
+            img.encoding,
+            img.data.len()
+        ));
+    }
+    Ok((color, channels, bytes, swap_rb))
+}
+
+/// `(width, height)` from a PNG's IHDR or a JPEG's start-of-frame segment, `None` for
+/// anything else (the replay then reports the image when it decodes it).
+fn bytes_dimensions(data: &[u8]) -> Option<(u32, u32)> {
+    if data.len() >= 24 && data[..8] == *b"\x89PNG\r\n\x1a\n" && data[12..16] == *b"IHDR" {
+        let be = |i: usize| u32::from_be_bytes([data[i], data[i + 1], data[i + 2], data[i + 3]]);
+        return Some((be(16), be(20)));
+    }
+    if !data.starts_with(&[0xFF, 0xD8]) {
+        return None;
+    }
+    let h = vgps_camera::imaging::formats::jpeg_frame_header(&data[..data.len().min(256 * 1024)])?;
+    Some((u32::from(h.width), u32::from(h.height)))
+}
+
 /// The outcome of an MCAP import.
 #[derive(Debug)]
 pub struct McapImport {
@@ -449,6 +527,8 @@ pub struct McapImport {
     pub mcap: McapReadSummary,
     /// Message types ignored, with their counts.
     pub ignored_types: BTreeMap<String, u64>,
+    /// [`ImageOutput::InRecording`]: where the frames' images are in the recording.
+    pub recording_images: Option<RecordingImages>,
 }
 
 /// Imports `file` (a rosbag2 MCAP) into the drive folder `out`.
@@ -470,6 +550,8 @@ pub fn import_mcap(
     }
     let mut state = State {
         out: out.to_path_buf(),
+        ordinal: 0,
+        refs: HashMap::new(),
         file: file.to_path_buf(),
         options,
         images: Vec::new(),
@@ -502,6 +584,8 @@ pub fn import_mcap(
     content.imu.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
     let tolerance_ns = (options.stamp_tolerance_s * 1e9).round() as i64;
     content.frames = assemble_frames(std::mem::take(&mut state.images), tolerance_ns);
+    let recording_images = (options.images == ImageOutput::InRecording)
+        .then(|| RecordingImages::new(file, &content.frames, std::mem::take(&mut state.refs)));
     let manifest = write_drive(
         out,
         &options.rig,
@@ -514,7 +598,211 @@ pub fn import_mcap(
         report,
         mcap,
         ignored_types: state.ignored_types,
+        recording_images,
     })
+}
+
+/// Where the images of an imported recording's frames are ([`ImageOutput::InRecording`]):
+/// each image's message, found again by its ordinal on a second read of the file.
+#[derive(Clone, Debug)]
+pub struct RecordingImages {
+    file: PathBuf,
+    /// Image name (as in the frames) → its place in the recording.
+    refs: HashMap<String, ImageRef>,
+    /// Message ordinal → (frame position, camera).
+    wanted: Arc<HashMap<u64, (usize, usize)>>,
+    /// Per frame position: the frame number and the cameras that name an image.
+    frames: Arc<Vec<(u64, Vec<bool>)>>,
+}
+
+/// The images of one frame read back from the recording ([`RecordingImages::stream`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameImages {
+    /// The frame number.
+    pub frame: u64,
+    /// Per camera: `None` where the frame names no image; else the image's bytes as a
+    /// drive file would hold them (a compressed image as recorded, a raw image as PNG), or
+    /// why they could not be read again.
+    pub images: Vec<Option<Result<Vec<u8>, String>>>,
+}
+
+/// Frames' images read from the recording in frame order by a reader thread, at most a few
+/// frames ahead of their use ([`RecordingImages::stream`]).
+#[derive(Debug)]
+pub struct FrameStream {
+    frames: Option<std::sync::mpsc::Receiver<FrameImages>>,
+    reader: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Iterator for FrameStream {
+    type Item = FrameImages;
+
+    fn next(&mut self) -> Option<FrameImages> {
+        self.frames.as_ref()?.recv().ok()
+    }
+}
+
+impl Drop for FrameStream {
+    fn drop(&mut self) {
+        // The reader stops at its next frame once nobody receives.
+        self.frames = None;
+        if let Some(reader) = self.reader.take() {
+            let _ = reader.join();
+        }
+    }
+}
+
+impl RecordingImages {
+    fn new(file: &Path, frames: &[FrameRecord], refs: HashMap<String, ImageRef>) -> Self {
+        let mut wanted = HashMap::new();
+        let mut named = Vec::with_capacity(frames.len());
+        for (position, f) in frames.iter().enumerate() {
+            for (camera, name) in f.images.iter().enumerate() {
+                if let Some(r) = name.as_ref().and_then(|n| refs.get(n)) {
+                    wanted.insert(r.ordinal, (position, camera));
+                }
+            }
+            named.push((f.frame, f.images.iter().map(Option::is_some).collect()));
+        }
+        Self {
+            file: file.to_path_buf(),
+            refs,
+            wanted: Arc::new(wanted),
+            frames: Arc::new(named),
+        }
+    }
+
+    /// The recording.
+    pub fn file(&self) -> &Path {
+        &self.file
+    }
+
+    /// Whether `name` (an image name of the frames) is an image of the recording.
+    pub fn contains(&self, name: &str) -> bool {
+        self.refs.contains_key(name)
+    }
+
+    /// `(width, height)` of image `name` from its PNG or JPEG header (a raw image: its
+    /// fields); `None` when the header gives none or `name` is not an image of the
+    /// recording.
+    pub fn dimensions(&self, name: &str) -> Option<(u32, u32)> {
+        self.refs.get(name)?.dimensions
+    }
+
+    /// How messages name image `name`: `FILE: record N (TOPIC)`.
+    pub fn describe(&self, name: &str) -> PathBuf {
+        match self.refs.get(name) {
+            Some(r) => PathBuf::from(format!(
+                "{}: record {} ({})",
+                self.file.display(),
+                r.record,
+                r.topic
+            )),
+            None => self.file.join(name),
+        }
+    }
+
+    /// Reads the recording again on a thread and yields every frame's images, in the order
+    /// of the frames, as soon as the last of them is read. At most `ahead` finished frames
+    /// wait to be taken, besides the frames whose images are still being read (those the
+    /// recording interleaves with later frames: one or two for a recording in time order),
+    /// so memory stays bounded however long the recording. A frame whose image is no longer
+    /// found (the file changed between the reads, a chunk unreadable) comes with the reason
+    /// in place of that image's bytes.
+    pub fn stream(&self, ahead: usize) -> FrameStream {
+        let (tx, rx) = std::sync::mpsc::sync_channel(ahead.max(1));
+        let file = self.file.clone();
+        let wanted = Arc::clone(&self.wanted);
+        let frames = Arc::clone(&self.frames);
+        let reader = std::thread::spawn(move || {
+            let mut pending: BTreeMap<usize, (usize, FrameImages)> = BTreeMap::new();
+            let mut next = 0usize;
+            let mut ordinal = 0u64;
+            let expected = |p: usize| frames[p].1.iter().filter(|&&b| b).count();
+            let new_frame = |p: usize| {
+                (
+                    0,
+                    FrameImages {
+                        frame: frames[p].0,
+                        images: vec![None; frames[p].1.len()],
+                    },
+                )
+            };
+            let read = read_mcap_file_until(&file, &mut |m| {
+                let o = ordinal;
+                ordinal += 1;
+                let Some(&(position, camera)) = wanted.get(&o) else {
+                    return ControlFlow::Continue(());
+                };
+                if position < next {
+                    return ControlFlow::Continue(());
+                }
+                let entry = pending
+                    .entry(position)
+                    .or_insert_with(|| new_frame(position));
+                if let Some(slot) = entry.1.images.get_mut(camera)
+                    && slot.is_none()
+                {
+                    *slot = Some(image_bytes(m));
+                    entry.0 += 1;
+                }
+                while next < frames.len()
+                    && pending
+                        .get(&next)
+                        .map_or(expected(next) == 0, |(got, _)| *got >= expected(next))
+                {
+                    let (_, f) = pending.remove(&next).unwrap_or_else(|| new_frame(next));
+                    if tx.send(f).is_err() {
+                        return ControlFlow::Break(());
+                    }
+                    next += 1;
+                }
+                ControlFlow::Continue(())
+            });
+            // The rest of the frames, with what was found; a missing image says why.
+            let why = match &read {
+                Ok(s) if s.truncated || s.bad_chunks > 0 => format!(
+                    "not found on reading {} again (the recording is damaged)",
+                    file.display()
+                ),
+                Ok(_) => format!(
+                    "not found on reading {} again (the recording changed)",
+                    file.display()
+                ),
+                Err(e) => e.to_string(),
+            };
+            for position in next..frames.len() {
+                let (_, mut f) = pending
+                    .remove(&position)
+                    .unwrap_or_else(|| new_frame(position));
+                for (slot, named) in f.images.iter_mut().zip(&frames[position].1) {
+                    if *named && slot.is_none() {
+                        *slot = Some(Err(why.clone()));
+                    }
+                }
+                if tx.send(f).is_err() {
+                    return;
+                }
+            }
+        });
+        FrameStream {
+            frames: Some(rx),
+            reader: Some(reader),
+        }
+    }
+}
+
+/// The bytes of an image message as a drive file would hold them.
+fn image_bytes(m: &McapMessage<'_>) -> Result<Vec<u8>, String> {
+    match kind_of(m.schema) {
+        Some(Kind::Compressed) => ros_decode::compressed_image(m.data)
+            .map(|img| img.data.to_vec())
+            .map_err(|e| e.to_string()),
+        Some(Kind::Raw) => ros_decode::raw_image(m.data)
+            .map_err(|e| e.to_string())
+            .and_then(|img| raw_to_png(&img)),
+        _ => Err(format!("record {}: not an image message", m.record)),
+    }
 }
 
 #[cfg(test)]

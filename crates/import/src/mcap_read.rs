@@ -14,6 +14,7 @@ use mcap::records::Record;
 use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
 use std::collections::HashMap;
 use std::io::Read;
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
 /// Largest accepted record (a chunk, an attachment), bytes: 1 GiB.
@@ -176,14 +177,49 @@ pub fn read_mcap_file(
     )
 }
 
+/// [`read_mcap_file`] that stops as soon as `on_message` returns [`ControlFlow::Break`]
+/// (the summary then counts what was read up to there).
+///
+/// # Errors
+/// As [`read_mcap_file`].
+pub fn read_mcap_file_until(
+    path: &Path,
+    on_message: &mut dyn FnMut(&McapMessage<'_>) -> ControlFlow<()>,
+) -> Result<McapReadSummary, McapFileError> {
+    let file = std::fs::File::open(path).map_err(|source| McapFileError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    read_mcap_until(
+        path,
+        std::io::BufReader::with_capacity(1 << 20, file),
+        on_message,
+    )
+}
+
 /// Reads MCAP data from `input` (named `path` in messages); see [`read_mcap_file`].
 ///
 /// # Errors
 /// [`McapFileError`] when `input` cannot be read or does not start with the MCAP magic.
 pub fn read_mcap(
     path: &Path,
-    mut input: impl Read,
+    input: impl Read,
     on_message: &mut dyn FnMut(&McapMessage<'_>),
+) -> Result<McapReadSummary, McapFileError> {
+    read_mcap_until(path, input, &mut |m| {
+        on_message(m);
+        ControlFlow::Continue(())
+    })
+}
+
+/// [`read_mcap`] that stops as soon as `on_message` returns [`ControlFlow::Break`].
+///
+/// # Errors
+/// As [`read_mcap`].
+pub fn read_mcap_until(
+    path: &Path,
+    mut input: impl Read,
+    on_message: &mut dyn FnMut(&McapMessage<'_>) -> ControlFlow<()>,
 ) -> Result<McapReadSummary, McapFileError> {
     let io_err = |source| McapFileError::Io {
         path: path.to_path_buf(),
@@ -209,7 +245,8 @@ pub fn read_mcap(
             .with_record_length_limit(MAX_RECORD_BYTES),
     );
     let mut channels = Channels::default();
-    loop {
+    let mut flow = ControlFlow::Continue(());
+    while flow.is_continue() {
         let event = match reader.next_event() {
             None => break,
             Some(Ok(event)) => event,
@@ -243,7 +280,7 @@ pub fn read_mcap(
                 summary.records += 1;
                 match mcap::parse_record(opcode, data) {
                     Ok(Record::Chunk { header, data }) => {
-                        read_chunk(
+                        flow = read_chunk(
                             record,
                             header,
                             &data,
@@ -253,7 +290,7 @@ pub fn read_mcap(
                         );
                     }
                     Ok(rec) => {
-                        handle(record, &rec, &mut channels, &mut summary, on_message);
+                        flow = handle(record, &rec, &mut channels, &mut summary, on_message);
                     }
                     Err(e) => summary.problem(
                         record,
@@ -286,8 +323,8 @@ fn read_chunk(
     data: &[u8],
     channels: &mut Channels,
     summary: &mut McapReadSummary,
-    on_message: &mut dyn FnMut(&McapMessage<'_>),
-) {
+    on_message: &mut dyn FnMut(&McapMessage<'_>) -> ControlFlow<()>,
+) -> ControlFlow<()> {
     let limit = header
         .compressed_size
         .saturating_mul(MAX_CHUNK_RATIO)
@@ -301,7 +338,7 @@ fn read_chunk(
                 header.uncompressed_size, header.compressed_size
             ),
         );
-        return;
+        return ControlFlow::Continue(());
     }
     let compression = header.compression.clone();
     // The `mcap` crate (0.26) panics on a chunk whose inner record claims a length within 9
@@ -348,7 +385,7 @@ fn read_chunk(
         Err(e) => {
             summary.bad_chunks += 1;
             summary.problem(record, format!("chunk ({compression}): {e}; skipped"));
-            return;
+            return ControlFlow::Continue(());
         }
     };
     // The chunk's CRC is checked at its end: nothing of it is used before that.
@@ -362,14 +399,15 @@ fn read_chunk(
                     record,
                     format!("chunk ({compression}): {e}; its messages are skipped"),
                 );
-                return;
+                return ControlFlow::Continue(());
             }
         }
     }
     summary.chunks += 1;
     for r in &records {
-        handle(record, r, channels, summary, on_message);
+        handle(record, r, channels, summary, on_message)?;
     }
+    ControlFlow::Continue(())
 }
 
 /// The records of a chunk, decompressed: borrowed when not compressed, `None` for a
@@ -454,11 +492,11 @@ fn handle(
     rec: &Record<'_>,
     channels: &mut Channels,
     summary: &mut McapReadSummary,
-    on_message: &mut dyn FnMut(&McapMessage<'_>),
-) {
+    on_message: &mut dyn FnMut(&McapMessage<'_>) -> ControlFlow<()>,
+) -> ControlFlow<()> {
     let Record::Message { header, data } = rec else {
         channels.take(rec);
-        return;
+        return ControlFlow::Continue(());
     };
     let Some((topic, encoding, schema_id)) = channels.channels.get(&header.channel_id) else {
         summary.orphan_messages += 1;
@@ -469,7 +507,7 @@ fn handle(
                 header.channel_id
             ),
         );
-        return;
+        return ControlFlow::Continue(());
     };
     let schema = channels.schemas.get(schema_id).map_or("", String::as_str);
     summary.messages += 1;
@@ -480,7 +518,7 @@ fn handle(
         log_time: header.log_time,
         record,
         data,
-    });
+    })
 }
 
 #[cfg(test)]
@@ -701,6 +739,24 @@ mod tests {
         );
         let (_, s) = read(&one_uncompressed_chunk(&[]));
         assert_eq!((s.bad_chunks, s.chunks), (0, 1), "{s:?}");
+    }
+
+    #[test]
+    fn reading_stops_when_the_callback_says_so() {
+        let bytes = sample(50, Some(mcap::Compression::Zstd));
+        let mut times = Vec::new();
+        let s = read_mcap_until(Path::new("x.mcap"), &bytes[..], &mut |m| {
+            times.push(m.log_time);
+            if m.log_time == 7 {
+                ControlFlow::Break(())
+            } else {
+                ControlFlow::Continue(())
+            }
+        })
+        .unwrap();
+        assert_eq!(times, (0..8).collect::<Vec<_>>());
+        assert_eq!(s.messages, 8);
+        assert!(s.problems.is_empty() && !s.truncated);
     }
 
     #[test]

@@ -3,7 +3,7 @@
 //! `tests/data/mcap/source`: what the recording holds comes back as the drive had it.
 
 use std::path::{Path, PathBuf};
-use vgps_import::mcap_import::{McapImportOptions, import_mcap};
+use vgps_import::mcap_import::{ImageOutput, McapImportOptions, import_mcap};
 use vgps_replay::drive::{Drive, Strictness};
 
 fn data() -> PathBuf {
@@ -16,7 +16,7 @@ fn options() -> McapImportOptions {
         landmarks: Some(data().join("source/landmarks.csv")),
         topics: None,
         stamp_tolerance_s: 0.01,
-        durable_images: true,
+        images: ImageOutput::Files,
     }
 }
 
@@ -187,4 +187,127 @@ fn a_chunk_with_a_bad_crc_is_skipped() {
     let drive = Drive::open(&out, Strictness::Strict).unwrap();
     assert!(drive.frames().is_empty());
     assert!(!drive.gnss().is_empty(), "the other chunks are read");
+}
+
+/// Every file under `dir`, relative.
+fn files_under(dir: &Path) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                out.push(p.strip_prefix(dir).unwrap().display().to_string());
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+#[test]
+fn images_left_in_the_recording_come_back_frame_by_frame_as_the_files_would_hold_them() {
+    let files = tempfile::tempdir().unwrap();
+    let as_files = import_mcap(&data().join("run.mcap"), files.path(), &options()).unwrap();
+    assert!(as_files.recording_images.is_none());
+    let small = tempfile::tempdir().unwrap();
+    let in_recording = import_mcap(
+        &data().join("run.mcap"),
+        small.path(),
+        &McapImportOptions {
+            images: ImageOutput::InRecording,
+            ..options()
+        },
+    )
+    .unwrap();
+    // No image is written: only the drive's small files.
+    let written = files_under(small.path());
+    assert_eq!(
+        written,
+        [
+            "calibration_calibration.json",
+            "drive.json",
+            "frames.csv",
+            "gnss.nmea",
+            "imu.csv",
+            "landmarks.csv",
+            "navsatfix.csv"
+        ],
+        "{written:?}"
+    );
+    assert_eq!(in_recording.report, as_files.report);
+    // The same frames (names included) as the import that writes the images.
+    let a = Drive::open(files.path(), Strictness::Strict).unwrap();
+    let b = Drive::open(small.path(), Strictness::Strict).unwrap();
+    assert_eq!(a.frames(), b.frames());
+    // Read back in frame order, each image's bytes are the file's: the PNGs as recorded,
+    // camera 5's raw mono8 converted to the same PNG; frame 2 has no camera 4.
+    let recording = in_recording.recording_images.unwrap();
+    let streamed: Vec<_> = recording.stream(1).collect();
+    assert_eq!(streamed.len(), a.frames().len());
+    let mut images = 0;
+    for (f, s) in a.frames().iter().zip(&streamed) {
+        assert_eq!(s.frame, f.frame);
+        assert_eq!(s.images.len(), f.images.len());
+        for (name, got) in f.images.iter().zip(&s.images) {
+            match (name, got) {
+                (None, None) => {}
+                (Some(name), Some(Ok(bytes))) => {
+                    assert_eq!(bytes, &std::fs::read(files.path().join(name)).unwrap());
+                    assert!(recording.contains(name));
+                    assert_eq!(recording.dimensions(name), Some((160, 120)));
+                    images += 1;
+                }
+                other => panic!("frame {}: {other:?}", f.frame),
+            }
+        }
+    }
+    assert_eq!(images, 29);
+    let shown = recording.describe(a.frames()[0].images[0].as_ref().unwrap());
+    assert!(
+        shown.display().to_string().contains("run.mcap: record ")
+            && shown
+                .display()
+                .to_string()
+                .ends_with("(/ladybug/cam0/image/compressed)"),
+        "{shown:?}"
+    );
+    // A stream dropped half-way stops its reader (no hang, no panic).
+    let mut partial = recording.stream(1);
+    assert_eq!(partial.next().map(|f| f.frame), Some(0));
+    drop(partial);
+}
+
+#[test]
+fn a_recording_cut_after_the_first_read_gives_the_missing_images_with_the_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("run.mcap");
+    std::fs::copy(data().join("run.mcap"), &file).unwrap();
+    let small = tempfile::tempdir().unwrap();
+    let imported = import_mcap(
+        &file,
+        small.path(),
+        &McapImportOptions {
+            images: ImageOutput::InRecording,
+            ..options()
+        },
+    )
+    .unwrap();
+    let whole = std::fs::read(&file).unwrap();
+    std::fs::write(&file, &whole[..whole.len() / 2]).unwrap();
+    let streamed: Vec<_> = imported.recording_images.unwrap().stream(2).collect();
+    assert_eq!(streamed.len(), 5, "every frame comes, in order");
+    assert_eq!(
+        streamed.iter().map(|f| f.frame).collect::<Vec<_>>(),
+        [0, 1, 2, 3, 4]
+    );
+    let last = streamed[4].images.iter().flatten().collect::<Vec<_>>();
+    assert!(!last.is_empty());
+    for image in last {
+        let why = image.as_ref().unwrap_err();
+        assert!(why.contains("run.mcap") && why.contains("damaged"), "{why}");
+    }
+    assert!(streamed[0].images.iter().flatten().all(Result::is_ok));
 }

@@ -11,11 +11,11 @@
 //! wrong size — so that a run can report it and go on with the next frame.
 
 use crate::drive::{FrameRecord, PixelDetection};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use vgps_camera::calibration::Rig;
 use vgps_camera::imaging::{
     DecodeLimits, ImagingError, LampDetector, Mask, StreetLampDetector, check_dimensions,
-    read_image,
+    decode_image_named,
 };
 
 /// The class written on detections found in night images: the drive format's lamp class
@@ -253,6 +253,30 @@ pub fn detect_frame_images(
     rig: &Rig,
     detector: &ImageDetector,
 ) -> FrameImageResult {
+    detect_frame_images_from(frame, rig, detector, &mut |_, name| {
+        let path = drive_dir.join(name);
+        match std::fs::read(&path) {
+            Ok(bytes) => Ok((path, bytes)),
+            Err(source) => Err(ImagingError::Io { path, source }),
+        }
+    })
+}
+
+/// Where [`detect_frame_images_from`] takes an image: `(camera, name)` → the path that names
+/// it in messages and its bytes.
+pub type ImageLoader<'a> = dyn FnMut(usize, &str) -> Result<(PathBuf, Vec<u8>), ImagingError> + 'a;
+
+/// [`detect_frame_images`] with the images' bytes from `load(camera, name)` instead of the
+/// drive directory: it returns the path that names the image in messages and the bytes a
+/// drive file would hold (`vgps replay run.mcap` reads them from the recording). The bytes
+/// are decoded as [`read_image`](vgps_camera::imaging::read_image) decodes a file
+/// ([`decode_image_named`]), so a frame gives the same detections from either source.
+pub fn detect_frame_images_from(
+    frame: &FrameRecord,
+    rig: &Rig,
+    detector: &ImageDetector,
+    load: &mut ImageLoader<'_>,
+) -> FrameImageResult {
     let mut result = FrameImageResult {
         frame: frame.frame,
         ..FrameImageResult::default()
@@ -268,11 +292,12 @@ pub fn detect_frame_images(
             });
             continue;
         };
-        let path = drive_dir.join(name);
         let limits = DecodeLimits::for_camera(&rig_camera.model);
-        let decoded = read_image(&path, &limits)
-            .and_then(|img| check_dimensions(&img, &rig_camera.model, &path).map(|()| img))
-            .and_then(|img| detector.detect(camera, &img));
+        let decoded = load(camera, name).and_then(|(path, bytes)| {
+            decode_image_named(&bytes, &limits, &path)
+                .and_then(|img| check_dimensions(&img, &rig_camera.model, &path).map(|()| img))
+        });
+        let decoded = decoded.and_then(|img| detector.detect(camera, &img));
         match decoded {
             // The mask was applied before detection; a centroid that still falls on a masked
             // pixel (a spot straddling the mask's edge) is dropped too.
