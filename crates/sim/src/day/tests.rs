@@ -166,6 +166,9 @@ fn the_vertex_detector_finds_the_corners_of_a_small_day_frame() {
             .iter()
             .map(|d| (d.u - c.u).hypot(d.v - c.v))
             .fold(f64::INFINITY, f64::min);
-        assert!(error < 0.5, "corner {c:?}: nearest detection {error} px; {found:?}");
+        assert!(
+            error < 0.5,
+            "corner {c:?}: nearest detection {error} px; {found:?}"
+        );
     }
 }
