@@ -209,3 +209,63 @@ fn simulate_images_detect_and_replay() {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+/// A tiny drive rendered by day: `detect --detector vertex` writes building corners, all of
+/// class `corner` (the class of the corner landmarks, so the matcher pairs them only with
+/// corners), and finds rendered corners to within a pixel.
+#[test]
+fn detect_vertex_on_a_tiny_day_drive_writes_corners() {
+    let tmp = tempfile::tempdir().unwrap();
+    let drive = tmp.path().join("day");
+    let d = drive.to_str().unwrap();
+    ok(&vgps(&[
+        "simulate",
+        "--preset",
+        "short",
+        "--length-m",
+        "3",
+        "--images",
+        "--time-of-day",
+        "day",
+        "--quiet",
+        "--threads",
+        "2",
+        "--out",
+        d,
+    ]));
+    let out = drive.join("corners.csv");
+    let summary = ok(&vgps(&[
+        "detect",
+        d,
+        "--detector",
+        "vertex",
+        "--threads",
+        "2",
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    assert!(summary.contains(" detections "), "{summary}");
+    let rows = read_csv(&out);
+    assert!(!rows.is_empty());
+    assert!(rows.iter().all(|r| r["class"] == "corner"), "{rows:?}");
+    let truth: Vec<_> = read_csv(&drive.join("images_truth.csv"))
+        .into_iter()
+        .filter(|r| r["kind"] == "corner" && r["clipped"] == "false")
+        .collect();
+    assert!(!truth.is_empty());
+    let within_a_pixel = truth
+        .iter()
+        .filter(|t| {
+            rows.iter().any(|r| {
+                r["frame"] == t["frame"]
+                    && r["camera"] == t["camera"]
+                    && (num(r, "u") - num(t, "u")).hypot(num(r, "v") - num(t, "v")) < 1.0
+            })
+        })
+        .count();
+    assert!(
+        within_a_pixel * 5 >= truth.len(),
+        "{within_a_pixel} of {} visible corners found within 1 px",
+        truth.len()
+    );
+}

@@ -1,4 +1,4 @@
-//! `vgps detect DRIVE`: lamp detection in every image of a drive, written as a detections
+//! `vgps detect DRIVE`: lamp or corner detection in every image of a drive, written as a detections
 //! file of the drive format (see `docs/cli.md`, `docs/lamp-detection.md`).
 //!
 //! # Output file
@@ -48,20 +48,24 @@ pub struct DetectArgs {
     /// default taken from the images (all images of those cameras must agree).
     #[arg(long, value_parser = super::image_size::parse_image_size)]
     pub image_size: Option<(u32, u32)>,
-    /// The lamp detector: `point` (every spot above the noise: rendered night frames) or
+    /// The detector: `point` (every spot above the noise: rendered night frames),
     /// `street` (bright cores against their local background, windows, reflections,
-    /// vehicle lights and ghosts rejected: real night photos).
+    /// vehicle lights and ghosts rejected: real night photos) or `vertex` (building corners
+    /// by day, class `corner`).
     #[arg(long, value_enum, default_value = "point")]
     pub detector: DetectorArg,
 }
 
-/// The lamp detectors of `--detector`.
+/// The detectors of `--detector`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum DetectorArg {
     /// Every spot above a noise-based threshold (point lights on a dark background).
     Point,
     /// The night-street detector (real photos: JPEG, bloom, windows, reflections).
     Street,
+    /// Building corners by day: the intersection of sub-pixel straight edges (class
+    /// `corner`).
+    Vertex,
 }
 
 impl From<DetectorArg> for DetectorKind {
@@ -69,6 +73,7 @@ impl From<DetectorArg> for DetectorKind {
         match a {
             DetectorArg::Point => DetectorKind::Point,
             DetectorArg::Street => DetectorKind::Street,
+            DetectorArg::Vertex => DetectorKind::Vertex,
         }
     }
 }

@@ -76,10 +76,11 @@ pub struct ReplayArgs {
     /// Do not use the drive's IMU (`imu.csv`) as the matcher's vertical and heading prior.
     #[arg(long)]
     pub no_imu: bool,
-    /// Detect lamps in the images even when the drive has `detections.csv`.
+    /// Detect landmarks in the images even when the drive has `detections.csv`.
     #[arg(long)]
     pub from_images: bool,
-    /// The lamp detector of the images (see `vgps detect --detector`).
+    /// The detector of the images: `point`, `street` (lamps, night) or `vertex` (building
+    /// corners, day); see `vgps detect --detector`.
     #[arg(long, value_enum, default_value = "point")]
     pub detector: super::detect::DetectorArg,
     /// Satellite GPS from another file.

@@ -1,12 +1,14 @@
-//! Lamp detection over the images of one drive frame (the step shared by `vgps detect` and
-//! `vgps replay --from-images`).
+//! Landmark detection over the images of one drive frame (the step shared by `vgps detect`
+//! and `vgps replay --from-images`).
 //!
 //! [`detect_frame_images`] reads each camera's image named in the frame (relative to the
 //! drive directory), checks it against the calibration, runs the [`ImageDetector`] — the
-//! point-light [`LampDetector`] or the night-street [`StreetLampDetector`], with the
-//! camera's calibration mask applied before detection — and returns the lamp detections in
-//! the drive format, labelled with the lamp class ([`DEFAULT_LAMP_CLASS`]) so that the
-//! matcher pairs them only with lamp landmarks, together with one [`ImageProblem`] per image
+//! point-light [`LampDetector`] or the night-street [`StreetLampDetector`] by night, the
+//! building-corner [`VertexDetector`] by day, with the camera's calibration mask applied
+//! before detection — and returns the detections in the drive format, labelled with the
+//! detector's landmark class ([`DEFAULT_LAMP_CLASS`] for lamps, [`CORNER_CLASS`] for
+//! corners) so that the matcher pairs them only with landmarks of that class, together with
+//! one [`ImageProblem`] per image
 //! that could not be used — a missing file, a non-image or corrupt file, a frame of the
 //! wrong size — so that a run can report it and go on with the next frame.
 
@@ -14,14 +16,19 @@ use crate::drive::{FrameRecord, PixelDetection};
 use std::path::{Path, PathBuf};
 use vgps_camera::calibration::Rig;
 use vgps_camera::imaging::{
-    DecodeLimits, ImagingError, LampDetector, Mask, StreetLampDetector, check_dimensions,
-    decode_image_named,
+    DecodeLimits, ImagingError, LampDetector, Mask, StreetLampDetector, VertexDetector,
+    check_dimensions, decode_image_named,
 };
 
 /// The class written on detections found in night images: the drive format's lamp class
 /// (`landmarks.csv` `class`). The matcher pairs a classed detection only with landmarks of
 /// that class; a map without the class (or without a `class` column) pairs it with any.
 pub const DEFAULT_LAMP_CLASS: &str = "streetlight";
+
+/// The class written on building corners found in day images: the drive format's class of
+/// building-corner landmarks (`landmarks.csv` `class`, as the simulator writes it), so that
+/// the matcher pairs a corner only with corner landmarks.
+pub const CORNER_CLASS: &str = "corner";
 
 /// Which lamp detector runs on the images.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -33,42 +40,69 @@ pub enum DetectorKind {
     /// [`StreetLampDetector`]: bright cores against their local background, windows,
     /// reflections, vehicle lights and ghosts rejected (real night streets).
     Street,
+    /// [`VertexDetector`]: building corners by day, as the intersection of straight edges
+    /// fitted in a locally rectified patch through the camera model.
+    Vertex,
 }
 
 impl DetectorKind {
-    /// `point` or `street`.
+    /// `point`, `street` or `vertex`.
     pub fn as_str(self) -> &'static str {
         match self {
             Self::Point => "point",
             Self::Street => "street",
+            Self::Vertex => "vertex",
+        }
+    }
+
+    /// The landmark class of this detector's detections: [`DEFAULT_LAMP_CLASS`] for the
+    /// lamp detectors, [`CORNER_CLASS`] for the vertex detector.
+    pub fn class(self) -> &'static str {
+        match self {
+            Self::Point | Self::Street => DEFAULT_LAMP_CLASS,
+            Self::Vertex => CORNER_CLASS,
         }
     }
 }
 
 /// The detector of a drive's images: the detector kind, each camera's detection mask (from
-/// the rig's calibration masks) and the class written on the detections.
+/// the rig's calibration masks), the camera models (for the vertex detector's rectified
+/// patches) and the class written on the detections.
 #[derive(Clone, Debug)]
 pub struct ImageDetector {
     kind: DetectorKind,
     point: LampDetector,
     street: StreetLampDetector,
+    vertex: VertexDetector,
     masks: Vec<Option<Mask>>,
+    models: Vec<vgps_camera::calibration::Camera>,
     class: Option<String>,
 }
 
 impl ImageDetector {
     /// The detector `kind` for the cameras of `rig` (their masks are converted once here),
-    /// labelling detections [`DEFAULT_LAMP_CLASS`].
+    /// labelling detections with [`DetectorKind::class`].
     pub fn new(kind: DetectorKind, rig: &Rig) -> Self {
         Self {
             kind,
             point: LampDetector::default(),
             street: StreetLampDetector::default(),
+            vertex: VertexDetector::default(),
             masks: (0..rig.len())
                 .map(|k| rig.mask(k).map(Mask::from_camera_mask))
                 .collect(),
-            class: Some(DEFAULT_LAMP_CLASS.to_string()),
+            models: match kind {
+                DetectorKind::Vertex => rig.cameras().iter().map(|c| c.model.clone()).collect(),
+                DetectorKind::Point | DetectorKind::Street => Vec::new(),
+            },
+            class: Some(kind.class().to_string()),
         }
+    }
+
+    /// The same detector with the vertex detector `vertex` (its parameters).
+    pub fn with_vertex_detector(mut self, vertex: VertexDetector) -> Self {
+        self.vertex = vertex;
+        self
     }
 
     /// The same detector with the point detector `point` (its parameters).
@@ -89,7 +123,7 @@ impl ImageDetector {
         self.kind
     }
 
-    /// The lamps of one image of camera `camera`: `(u, v, strength)`, the camera's mask
+    /// The detections of one image of camera `camera`: `(u, v, strength)`, the camera's mask
     /// applied before detection (a mask of another size than the image is ignored: the
     /// image's size was checked against the calibration, whose mask has its size).
     ///
@@ -119,6 +153,12 @@ impl ImageDetector {
                 .lamps
                 .iter()
                 .map(|l| (l.u, l.v, l.strength))
+                .collect(),
+            DetectorKind::Vertex => self
+                .vertex
+                .detect(image, self.models.get(camera), mask)
+                .iter()
+                .map(|c| (c.u, c.v, c.strength))
                 .collect(),
         })
     }
