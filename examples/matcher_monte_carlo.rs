@@ -301,7 +301,7 @@ fn main() {
     println!(
         "| {layout} | {mode} | {vertical} | {:.1} % ({false_detections} of {}) | {frames} | {right} ({:.2} %) | {wrong} | {no_match} / {ambiguous} | {:.3} ms |",
         100.0 * all_false as f64 / all_detections.max(1) as f64,
-        true_detections + false_detections,
+        frame_config.true_detections + frame_config.false_detections,
         pct(right),
         times[frames / 2] * 1e3,
     );
