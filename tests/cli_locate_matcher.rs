@@ -209,8 +209,13 @@ fn a_calibration_declaring_the_rig_level_acts_as_the_up_tolerance_flag() {
     let dir = tempfile::tempdir().unwrap();
     let (l, o, truth, _) = plaza_seen_from(dir.path(), Vector3::new(10f64.to_radians(), 0.0, 0.6));
     let prior = prior_arg(&Vector3::new(-5.0, 4.0, 2.0), 15.0);
-    let plain = common::fixture("calibration/native_mixed.json");
-    let text = std::fs::read_to_string(&plain).unwrap();
+    // A panorama (no side files, so the copy may live in the temporary directory).
+    let text = r#"{"format": "vgps-calibration", "version": 1,
+  "cameras": [{"camera": {"model": "equirectangular", "width": 64, "height": 32},
+    "rig_from_camera": {"rotation": [[0, 0, 1], [-1, 0, 0], [0, -1, 0]], "translation": [0, 0, 0]}}]}"#;
+    let plain = dir.path().join("plain.json");
+    std::fs::write(&plain, text).unwrap();
+    let plain = plain.to_str().unwrap().to_string();
     assert!(text.contains("\"version\": 1,"));
     let declared = dir.path().join("level3.json");
     std::fs::write(

@@ -185,6 +185,15 @@ pub fn parse(text: &str, path: &Path) -> Result<Rig, LoadError> {
     if file.cameras.is_empty() {
         return Err(LoadError::invalid(path, "key cameras", "no camera"));
     }
+    if let Some(deg) = file.level_within_deg
+        && !(deg.is_finite() && deg > 0.0 && deg <= 90.0)
+    {
+        return Err(LoadError::invalid(
+            path,
+            "key level_within_deg",
+            format!("{deg} is not an angle in (0, 90] degrees"),
+        ));
+    }
     let dir = base_dir(path);
     let mut cameras = Vec::with_capacity(file.cameras.len());
     for (i, c) in file.cameras.iter().enumerate() {
@@ -200,18 +209,9 @@ pub fn parse(text: &str, path: &Path) -> Result<Rig, LoadError> {
     }
     let mut rig =
         Rig::new(cameras).map_err(|e| LoadError::invalid(path, "cameras", e.to_string()))?;
-    if let Some(deg) = file.level_within_deg {
-        if !(deg.is_finite() && deg > 0.0 && deg <= 90.0) {
-            return Err(LoadError::invalid(
-                path,
-                "key level_within_deg",
-                format!("{deg} is not an angle in (0, 90] degrees"),
-            ));
-        }
-        rig = rig
-            .with_level_within_rad(Some(deg.to_radians()))
-            .map_err(|e| LoadError::invalid(path, "key level_within_deg", e.to_string()))?;
-    }
+    rig = rig
+        .with_level_within_rad(file.level_within_deg.map(f64::to_radians))
+        .map_err(|e| LoadError::invalid(path, "key level_within_deg", e.to_string()))?;
     for (i, c) in file.cameras.iter().enumerate() {
         if let Some(name) = &c.mask {
             let field = format!("cameras[{i}].mask");
