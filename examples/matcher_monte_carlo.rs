@@ -8,7 +8,16 @@
 //! `FROM=N` (generate frames 0..N but match only from frame N on: reproduces frame N alone),
 //! `LAYOUT=scatter` (2,000 landmarks scattered over 1 km², 3–30 m high, the 14 nearest within
 //! 80 m seen: issue #25's random layout, `vgps::synthetic::scatter`; default: the street
-//! grid), `MAX_NFA` (the acceptance test's ε; `inf` disables it).
+//! grid; `LAYOUT=grid` names it), `MAX_NFA` (the acceptance test's ε; `inf` disables it),
+//! `FALSE_FRAC=0.2` (false detections as a fraction of all detections of a full frame:
+//! `round(TRUE_DET · f / (1 − f))` false ones, 4 of 18 for 0.2 and 9 of 23 for 0.4 with the
+//! default 14 true; overrides `FALSE_DET`).
+//!
+//! `MAX_SECONDS=S`: stop drawing frames after S seconds of wall time (the summary counts the
+//! frames matched; for the slow regimes on a shared machine).
+//!
+//! The last line is a Markdown table row: layout, mode, vertical, false-detection fraction
+//! (measured over the frames), frames, right, wrong, no_match / ambiguous, median time.
 use std::time::Instant;
 use vgps::geometry::Ray;
 use vgps::matcher::{Detection, MatchOptions, MatchStatus, match_detections};
@@ -33,8 +42,13 @@ fn main() {
         CityConfig::default()
     };
     let world = CityWorld::generate(&mut r, &config);
-    let scatter = (std::env::var("LAYOUT").as_deref() == Ok("scatter"))
-        .then(|| ScatterWorld::generate(&mut r, &ScatterConfig::default()));
+    let layout = std::env::var("LAYOUT").unwrap_or_else(|_| "grid".to_string());
+    if layout != "grid" && layout != "scatter" {
+        eprintln!("LAYOUT must be grid or scatter, not {layout:?}");
+        std::process::exit(2);
+    }
+    let scatter =
+        (layout == "scatter").then(|| ScatterWorld::generate(&mut r, &ScatterConfig::default()));
     let db = match &scatter {
         Some(s) => s.landmark_db(),
         None => world.landmark_db(),
@@ -47,9 +61,22 @@ fn main() {
             .and_then(|s| s.parse().ok())
             .unwrap_or(default)
     };
+    let true_detections = env_usize("TRUE_DET", FrameConfig::default().true_detections);
+    let false_detections = match std::env::var("FALSE_FRAC") {
+        Ok(text) => match text.parse::<f64>() {
+            Ok(f) if (0.0..0.95).contains(&f) => {
+                (true_detections as f64 * f / (1.0 - f)).round() as usize
+            }
+            _ => {
+                eprintln!("FALSE_FRAC must be a number in [0, 0.95), not {text:?}");
+                std::process::exit(2);
+            }
+        },
+        Err(_) => env_usize("FALSE_DET", FrameConfig::default().false_detections),
+    };
     let frame_config = FrameConfig {
-        true_detections: env_usize("TRUE_DET", FrameConfig::default().true_detections),
-        false_detections: env_usize("FALSE_DET", FrameConfig::default().false_detections),
+        true_detections,
+        false_detections,
         ..FrameConfig::default()
     };
     let options = MatchOptions {
@@ -97,11 +124,22 @@ fn main() {
     // Over the fixes: true detections (of a landmark in the database) and those linked to
     // their landmark (the rest are left unlinked, or wrongly linked).
     let (mut true_detections, mut true_links) = (0usize, 0usize);
+    // Over all frames matched: detections and false detections (the measured fraction).
+    let (mut all_detections, mut all_false) = (0usize, 0usize);
     let from: usize = std::env::var("FROM")
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(0);
+    let max_seconds: f64 = std::env::var("MAX_SECONDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(f64::INFINITY);
+    let wall = Instant::now();
     for frame_index in 0..frames {
+        if wall.elapsed().as_secs_f64() > max_seconds {
+            println!("MAX_SECONDS reached after {frame_index} frames");
+            break;
+        }
         let trial = match (&scatter, cold) {
             (Some(s), true) => s.cold_trial(&mut r, &frame_config),
             (Some(s), false) => s.prior_trial(&mut r, &frame_config),
@@ -112,6 +150,8 @@ fn main() {
         if frame_index < from {
             continue;
         }
+        all_detections += frame.truth.len();
+        all_false += frame.truth.iter().filter(|t| t.is_none()).count();
         let detections: Vec<Detection> = frame
             .detections
             .iter()
@@ -253,5 +293,16 @@ fn main() {
         times[frames / 2] * 1e3,
         times[frames * 9 / 10] * 1e3,
         times[frames - 1] * 1e3,
+    );
+    // The table row of docs/matcher-acceptance.md.
+    let vertical = options.up_in_rig.map_or("none".to_string(), |(_, t)| {
+        format!("{:.0}°", t.to_degrees())
+    });
+    println!(
+        "| {layout} | {mode} | {vertical} | {:.1} % ({false_detections} of {}) | {frames} | {right} ({:.2} %) | {wrong} | {no_match} / {ambiguous} | {:.3} ms |",
+        100.0 * all_false as f64 / all_detections.max(1) as f64,
+        frame_config.true_detections + frame_config.false_detections,
+        pct(right),
+        times[frames / 2] * 1e3,
     );
 }

@@ -652,6 +652,34 @@ fn rows() -> Vec<Row> {
             code: 2,
             stderr: &["{t}/c.json", "cameras[0].camera", "exceeds 65536 pixels"],
         },
+        Row {
+            name: "calibration declaring the rig level within -3° (locate)",
+            setup: |t| {
+                let text = std::fs::read_to_string(fixture("calibration/native_mixed.json"))
+                    .expect("json");
+                write(
+                    t,
+                    "c.json",
+                    text.replacen(
+                        "\"version\": 1,",
+                        "\"version\": 1, \"level_within_deg\": -3,",
+                        1,
+                    ),
+                );
+                write(t, "O.csv", "frame,bx,by,bz\n0,1,0,0\n");
+            },
+            args: &[
+                "locate",
+                "--landmarks",
+                "{fx}/landmarks.csv",
+                "--observations",
+                "{t}/O.csv",
+                "--calibration",
+                "{t}/c.json",
+            ],
+            code: 2,
+            stderr: &["{t}/c.json", "level_within_deg", "-3"],
+        },
         // ---- vgps triangulate ----
         Row {
             name: "rays: not a number",
@@ -1231,6 +1259,26 @@ fn rows() -> Vec<Row> {
             args: &["replay", "{t}/d", "--quiet"],
             code: 2,
             stderr: &["{t}/d/calibration.json"],
+        },
+        Row {
+            name: "replay: calibration declaring the rig level within 200°",
+            setup: |t| {
+                let path = drive(t).join("calibration.json");
+                let text = std::fs::read_to_string(&path).expect("json");
+                assert!(text.contains("\"version\": 1,"), "{text}");
+                std::fs::write(
+                    &path,
+                    text.replacen(
+                        "\"version\": 1,",
+                        "\"version\": 1, \"level_within_deg\": 200,",
+                        1,
+                    ),
+                )
+                .expect("write");
+            },
+            args: &["replay", "{t}/d", "--quiet"],
+            code: 2,
+            stderr: &["{t}/d/calibration.json", "level_within_deg", "200"],
         },
         Row {
             name: "replay: frames.csv NaN time",

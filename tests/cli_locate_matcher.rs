@@ -73,6 +73,14 @@ fn run(landmarks: &Path, observations: &Path, extra: &[&str]) -> (Option<i32>, V
 
 /// Irregular landmarks (a plaza), the rig near the origin, 10 seen and 2 stray lights.
 fn plaza(dir: &Path) -> (PathBuf, PathBuf, Pose, Vec<usize>) {
+    plaza_seen_from(dir, Vector3::new(0.01, -0.02, 0.6))
+}
+
+/// [`plaza`] seen by a rig of attitude `rotation_vector` (axis × angle, radians).
+fn plaza_seen_from(
+    dir: &Path,
+    rotation_vector: Vector3<f64>,
+) -> (PathBuf, PathBuf, Pose, Vec<usize>) {
     let mut r = rng(21);
     let points: Vec<Vector3<f64>> = (0..40)
         .map(|_| {
@@ -83,7 +91,7 @@ fn plaza(dir: &Path) -> (PathBuf, PathBuf, Pose, Vec<usize>) {
             )
         })
         .collect();
-    let truth = Pose::new(Vector3::new(3.0, -2.0, 2.0), Vector3::new(0.01, -0.02, 0.6));
+    let truth = Pose::new(Vector3::new(3.0, -2.0, 2.0), rotation_vector);
     let seen: Vec<usize> = (0..points.len())
         .filter(|&k| (points[k] - truth.translation.vector).norm() < 60.0)
         .take(10)
@@ -191,4 +199,60 @@ fn a_regular_street_is_ambiguous_with_a_cold_start_region() {
     let best = line["best_score"].as_u64().unwrap();
     let runner_up = line["runner_up_score"].as_u64().unwrap();
     assert!(runner_up + 3 > best, "{line}");
+}
+
+/// A calibration that declares the rig level (`level_within_deg`) gives the matcher the same
+/// vertical as `--up-tolerance-deg`, and the flag overrides it. The rig is tilted 10°: a 3°
+/// vertical prunes the true pose (no fix), 15° or none finds it.
+#[test]
+fn a_calibration_declaring_the_rig_level_acts_as_the_up_tolerance_flag() {
+    let dir = tempfile::tempdir().unwrap();
+    let (l, o, truth, _) = plaza_seen_from(dir.path(), Vector3::new(10f64.to_radians(), 0.0, 0.6));
+    let prior = prior_arg(&Vector3::new(-5.0, 4.0, 2.0), 15.0);
+    // A panorama (no side files, so the copy may live in the temporary directory).
+    let text = r#"{"format": "vgps-calibration", "version": 1,
+  "cameras": [{"camera": {"model": "equirectangular", "width": 64, "height": 32},
+    "rig_from_camera": {"rotation": [[0, 0, 1], [-1, 0, 0], [0, -1, 0]], "translation": [0, 0, 0]}}]}"#;
+    let plain = dir.path().join("plain.json");
+    std::fs::write(&plain, text).unwrap();
+    let plain = plain.to_str().unwrap().to_string();
+    assert!(text.contains("\"version\": 1,"));
+    let declared = dir.path().join("level3.json");
+    std::fs::write(
+        &declared,
+        text.replacen(
+            "\"version\": 1,",
+            "\"version\": 1, \"level_within_deg\": 3,",
+            1,
+        ),
+    )
+    .unwrap();
+    let declared = declared.to_str().unwrap();
+    let status = |extra: &[&str]| {
+        let mut args = vec!["--prior", prior.as_str()];
+        args.extend_from_slice(extra);
+        let (code, lines) = run(&l, &o, &args);
+        assert_eq!(code, Some(0));
+        lines[0].clone()
+    };
+    let none = status(&["--calibration", &plain]);
+    assert_eq!(none["status"], "ok", "{none}");
+    let g = Geodetic::try_new(
+        none["lat"].as_f64().unwrap(),
+        none["lon"].as_f64().unwrap(),
+        none["alt"].as_f64().unwrap(),
+    )
+    .unwrap();
+    assert!((local().to_enu(&g) - truth.translation.vector).norm() < 0.05);
+    let flag = status(&["--calibration", &plain, "--up-tolerance-deg", "3"]);
+    assert_ne!(flag["status"], "ok", "{flag}");
+    let from_calibration = status(&["--calibration", declared]);
+    assert_eq!(from_calibration, flag);
+    // The flag overrides the declaration.
+    let overridden = status(&["--calibration", declared, "--up-tolerance-deg", "15"]);
+    assert_eq!(overridden["status"], "ok", "{overridden}");
+    assert_eq!(
+        overridden,
+        status(&["--calibration", &plain, "--up-tolerance-deg", "15"])
+    );
 }

@@ -73,7 +73,8 @@ pub struct LocateArgs {
     #[arg(long, value_name = "LAT,LON,ALT,RADIUS_M", value_parser = parse_prior, allow_hyphen_values = true)]
     pub region: Option<PriorArg>,
     /// Known vertical for the matcher: the rig's +z axis is within this many degrees of
-    /// up (a level vehicle, or an IMU-levelled rig). Much faster matching.
+    /// up (a level vehicle, or an IMU-levelled rig). Much faster matching. Overrides the
+    /// calibration's `level_within_deg`.
     #[arg(long, value_name = "DEG", value_parser = parse_non_negative)]
     pub up_tolerance_deg: Option<f64>,
     /// Bearing standard deviation per tangent axis, degrees.

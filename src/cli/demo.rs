@@ -158,6 +158,7 @@ fn replay_settings(
         surrogates: true,
         gnss_prior: true,
         imu: true,
+        up_tolerance_rad: None,
         from_images,
         image_size: None,
         detector: vgps_replay::frame_images::DetectorKind::Point,

@@ -144,7 +144,10 @@ pub fn run(
         rig: rig.as_ref(),
         prior: settings.prior.as_ref(),
         region: settings.region.as_ref(),
-        up_tolerance_rad: settings.up_tolerance_rad,
+        // The flag, else the calibration's declaration (`level_within_deg`).
+        up_tolerance_rad: settings
+            .up_tolerance_rad
+            .or(rig.as_ref().and_then(Rig::level_within_rad)),
         sigma_rad: settings.sigma_rad,
     };
     let reports = locate(&input, &mut notes)?;

@@ -76,6 +76,11 @@ pub struct ReplayArgs {
     /// Do not use the drive's IMU (`imu.csv`) as the matcher's vertical and heading prior.
     #[arg(long)]
     pub no_imu: bool,
+    /// The rig's +z axis is within this many degrees of up when no IMU says otherwise: the
+    /// matcher's vertical. Overrides the calibration's `level_within_deg`; without either,
+    /// 5° (a vehicle rig).
+    #[arg(long, value_name = "DEG", value_parser = super::args::parse_non_negative)]
+    pub up_tolerance_deg: Option<f64>,
     /// Detect landmarks in the images even when the drive has `detections.csv`.
     #[arg(long)]
     pub from_images: bool,
@@ -174,6 +179,11 @@ pub fn run(
     let options = LocalizerOptions {
         pixel_sigma_px: settings.pixel_sigma_px,
         surrogates: settings.surrogates,
+        // The flag, else the calibration's declaration, else the default (5°).
+        level_tolerance_rad: settings
+            .up_tolerance_rad
+            .or(rig.level_within_rad())
+            .or(LocalizerOptions::default().level_tolerance_rad),
         ..LocalizerOptions::default()
     };
     let mut localizer = Localizer::new(Arc::clone(&rig), Arc::clone(&map), options)

@@ -110,6 +110,9 @@ pub struct ReplaySettings {
     pub gnss_prior: bool,
     /// Use the drive's IMU as an attitude prior.
     pub imu: bool,
+    /// `--up-tolerance-deg`, radians: the rig's +z is within it of up (overrides the
+    /// calibration's `level_within_deg`).
+    pub up_tolerance_rad: Option<f64>,
     /// Detect lamps in the images even when the drive has a detections file.
     pub from_images: bool,
     /// The image size of cameras whose calibration has none (`--image-size WxH`).
@@ -310,6 +313,7 @@ impl TryFrom<ReplayArgs> for ReplaySettings {
             surrogates: !a.no_surrogates,
             gnss_prior: !a.no_gnss_prior,
             imu: !a.no_imu,
+            up_tolerance_rad: a.up_tolerance_deg.map(f64::to_radians),
             from_images: a.from_images,
             image_size: a.image_size,
             detector: a.detector.into(),

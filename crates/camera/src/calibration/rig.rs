@@ -50,7 +50,14 @@ pub struct Rig {
     cameras: Vec<RigCamera>,
     /// Per camera, the pixels that never see the world (none by default).
     masks: Vec<Option<std::sync::Arc<super::CameraMask>>>,
+    /// The rig's z axis stays within this angle of the local vertical (radians), when the
+    /// calibration declares it (a vehicle rig: `level_within_deg` of the native file).
+    level_within_rad: Option<f64>,
 }
+
+/// The largest angle a rig may declare it is level within ([`Rig::with_level_within_rad`]):
+/// 90°, beyond which a "level" rig may be upside down.
+pub const MAX_LEVEL_WITHIN_RAD: f64 = std::f64::consts::FRAC_PI_2;
 
 impl Rig {
     /// A rig from its cameras, checking every rotation is orthonormal with determinant +1
@@ -73,7 +80,11 @@ impl Rig {
             }
         }
         let masks = vec![None; cameras.len()];
-        Ok(Self { cameras, masks })
+        Ok(Self {
+            cameras,
+            masks,
+            level_within_rad: None,
+        })
     }
 
     /// A rig of one panorama at the rig origin, its centre along rig +x and its top along
@@ -88,7 +99,39 @@ impl Rig {
                 ),
             }],
             masks: vec![None],
+            level_within_rad: None,
         }
+    }
+
+    /// The rig declared level: its z axis stays within `tolerance_rad` of the local vertical
+    /// (a vehicle rig, mounted level within a few degrees). The localizer and `vgps locate`
+    /// then give the matcher this vertical; `None` removes the declaration.
+    ///
+    /// # Errors
+    /// [`CalibrationError::InvalidParameters`] when the tolerance is not a finite angle in
+    /// (0, [`MAX_LEVEL_WITHIN_RAD`]].
+    pub fn with_level_within_rad(
+        mut self,
+        tolerance_rad: Option<f64>,
+    ) -> Result<Self, CalibrationError> {
+        if let Some(t) = tolerance_rad
+            && !(t.is_finite() && t > 0.0 && t <= MAX_LEVEL_WITHIN_RAD)
+        {
+            return Err(CalibrationError::InvalidParameters {
+                model: "rig",
+                reason: format!(
+                    "level within {}° is not an angle in (0°, 90°]",
+                    t.to_degrees()
+                ),
+            });
+        }
+        self.level_within_rad = tolerance_rad;
+        Ok(self)
+    }
+
+    /// The declared level tolerance ([`Self::with_level_within_rad`]), radians, if any.
+    pub fn level_within_rad(&self) -> Option<f64> {
+        self.level_within_rad
     }
 
     /// The rig with `mask` as camera `camera`'s mask (the pixels that never see the world);

@@ -27,6 +27,10 @@
 //!   [`nclt`]). Side-file paths are relative to the JSON file's directory.
 //! - `mask` (optional, per camera): a PNG side file of the camera's image size whose black
 //!   pixels never see the world (a [`CameraMask`](crate::calibration::CameraMask)).
+//! - `level_within_deg` (optional, top level): the rig is level within this many degrees
+//!   (its z axis within that angle of the local vertical: a vehicle rig). `vgps locate` and
+//!   `vgps replay` then search with this vertical when no `--up-tolerance-deg` is given
+//!   ([`Rig::level_within_rad`]). A number in (0, 90].
 //! - Unknown fields are errors. Numbers are written in the shortest form that reads back
 //!   to the same `f64`, so write → read is exact.
 
@@ -56,6 +60,10 @@ pub struct NativeFile {
     pub version: u32,
     /// The cameras, in rig order (camera index = position).
     pub cameras: Vec<NativeCamera>,
+    /// The rig is level within this many degrees (its z axis within that angle of the local
+    /// vertical), when declared.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub level_within_deg: Option<f64>,
 }
 
 /// One camera of a native file.
@@ -177,6 +185,15 @@ pub fn parse(text: &str, path: &Path) -> Result<Rig, LoadError> {
     if file.cameras.is_empty() {
         return Err(LoadError::invalid(path, "key cameras", "no camera"));
     }
+    if let Some(deg) = file.level_within_deg
+        && !(deg.is_finite() && deg > 0.0 && deg <= 90.0)
+    {
+        return Err(LoadError::invalid(
+            path,
+            "key level_within_deg",
+            format!("{deg} is not an angle in (0, 90] degrees"),
+        ));
+    }
     let dir = base_dir(path);
     let mut cameras = Vec::with_capacity(file.cameras.len());
     for (i, c) in file.cameras.iter().enumerate() {
@@ -192,6 +209,9 @@ pub fn parse(text: &str, path: &Path) -> Result<Rig, LoadError> {
     }
     let mut rig =
         Rig::new(cameras).map_err(|e| LoadError::invalid(path, "cameras", e.to_string()))?;
+    rig = rig
+        .with_level_within_rad(file.level_within_deg.map(f64::to_radians))
+        .map_err(|e| LoadError::invalid(path, "key level_within_deg", e.to_string()))?;
     for (i, c) in file.cameras.iter().enumerate() {
         if let Some(name) = &c.mask {
             let field = format!("cameras[{i}].mask");
@@ -389,6 +409,7 @@ pub fn to_native(rig: &Rig, stem: &str) -> (NativeFile, Vec<(String, Vec<u8>)>) 
             format: NATIVE_FORMAT_NAME.into(),
             version: NATIVE_FORMAT_VERSION,
             cameras,
+            level_within_deg: rig.level_within_rad().map(f64::to_degrees),
         },
         side,
     )
@@ -448,4 +469,67 @@ fn compact_number_arrays(pretty: &str) -> String {
     }
     out.push_str(rest);
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A one-panorama native file, with `extra` inserted after the version.
+    fn text(extra: &str) -> String {
+        format!(
+            r#"{{
+  "format": "vgps-calibration",
+  "version": 1,{extra}
+  "cameras": [
+    {{
+      "camera": {{"model": "equirectangular", "width": 64, "height": 32}},
+      "rig_from_camera": {{"rotation": [[0, 0, 1], [-1, 0, 0], [0, -1, 0]],
+                          "translation": [0, 0, 0]}}
+    }}
+  ]
+}}"#
+        )
+    }
+
+    #[test]
+    fn a_declared_level_is_read_written_and_checked() {
+        let path = Path::new("rig.json");
+        let plain = parse(&text(""), path).unwrap();
+        assert_eq!(plain.level_within_rad(), None);
+        let level = parse(&text("\n  \"level_within_deg\": 4,"), path).unwrap();
+        let t = level.level_within_rad().unwrap();
+        assert!((t - 4.0_f64.to_radians()).abs() < 1e-15, "{t}");
+        assert_eq!(level.cameras(), plain.cameras());
+        // Written and read back: the same rig (and nothing written without a declaration).
+        let dir = tempfile::tempdir().unwrap();
+        for (rig, declared) in [(&level, true), (&plain, false)] {
+            let out = dir.path().join("out.json");
+            write(rig, &out).unwrap();
+            let written = std::fs::read_to_string(&out).unwrap();
+            assert_eq!(written.contains("level_within_deg"), declared, "{written}");
+            let back = read(&out).unwrap();
+            assert_eq!(back.cameras(), rig.cameras());
+            let (a, b) = (back.level_within_rad(), rig.level_within_rad());
+            assert_eq!(a.is_some(), b.is_some());
+            assert!((a.unwrap_or(0.0) - b.unwrap_or(0.0)).abs() < 1e-15);
+        }
+        // Bad values: errors naming the file and the field.
+        for bad in ["-3", "0", "90.5", "1e308"] {
+            let e = parse(&text(&format!("\n  \"level_within_deg\": {bad},")), path)
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains("rig.json") && e.contains("level_within_deg"),
+                "{e}"
+            );
+        }
+        let e = parse(&text("\n  \"level_within_deg\": \"four\","), path)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("rig.json") && e.contains("line 4"), "{e}");
+        // The library's own check.
+        assert!(plain.clone().with_level_within_rad(Some(f64::NAN)).is_err());
+        assert!(plain.with_level_within_rad(Some(0.07)).is_ok());
+    }
 }
