@@ -83,6 +83,10 @@ pub fn resolve(drive: &mut Drive, given: Option<(u32, u32)>) -> Result<Option<St
     })
 }
 
+/// What [`resolve_with`] learns of one image: whether it exists, the size its header gives,
+/// and how messages name it.
+pub type ImageHeader = (bool, Option<(u32, u32)>, String);
+
 /// [`resolve`] with each image's header from `header(name)`: whether the image exists, the
 /// size its header gives, and how messages name it (`vgps replay run.mcap` takes them from
 /// the recording).
@@ -92,7 +96,7 @@ pub fn resolve(drive: &mut Drive, given: Option<(u32, u32)>) -> Result<Option<St
 pub fn resolve_with(
     drive: &mut Drive,
     given: Option<(u32, u32)>,
-    header: &dyn Fn(&str) -> (bool, Option<(u32, u32)>, String),
+    header: &dyn Fn(&str) -> ImageHeader,
 ) -> Result<Option<String>, CliError> {
     let unbounded: Vec<usize> = (0..drive.rig().len())
         .filter(|&i| drive.rig().cameras()[i].model.image_size() == (0, 0))

@@ -355,7 +355,7 @@ fn read_chunk(
                 &compression
             };
             summary.problem(record, format!("chunk ({what}): {reason}; skipped"));
-            return;
+            return ControlFlow::Continue(());
         }
     };
     let (header, data) = match &plain {
@@ -368,7 +368,7 @@ fn read_chunk(
                     &compression
                 };
                 summary.problem(record, format!("chunk ({what}): {reason}; skipped"));
-                return;
+                return ControlFlow::Continue(());
             }
             let header = mcap::records::ChunkHeader {
                 compression: String::new(),
@@ -677,7 +677,8 @@ mod tests {
     /// panicked in its decompressing reader (`linear_reader.rs:83`).
     #[test]
     fn a_compressed_chunk_record_claiming_u64_max_bytes_is_not_a_panic() {
-        let packers: [(&str, fn(&[u8]) -> Vec<u8>); 2] = [("zstd", zstd_pack), ("lz4", lz4_pack)];
+        type Pack = fn(&[u8]) -> Vec<u8>;
+        let packers: [(&str, Pack); 2] = [("zstd", zstd_pack), ("lz4", lz4_pack)];
         for (name, pack) in packers {
             for len in [u64::MAX, u64::MAX - 8, 1 << 40] {
                 let mut records = vec![0x05];
