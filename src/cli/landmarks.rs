@@ -23,7 +23,7 @@ pub struct LandmarksArgs {
 #[derive(Debug, clap::Subcommand)]
 pub enum LandmarksCommand {
     /// Import a GIS inventory (GeoJSON points or CSV lat/lon) into `landmarks.csv`.
-    Import(ImportArgs),
+    Import(LandmarkImportArgs),
 }
 
 /// How the ground heights are referenced on the command line.
@@ -37,7 +37,7 @@ pub enum HeightReferenceArg {
 
 /// Arguments of `vgps landmarks import`.
 #[derive(Debug, clap::Args)]
-pub struct ImportArgs {
+pub struct LandmarkImportArgs {
     /// The inventory: `.geojson`/`.json` (GeoJSON points, WGS84) or `.csv`
     /// (`lat,lon[,id][,height][,ele][,class][,sigma_m]`).
     pub input: PathBuf,

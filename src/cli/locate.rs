@@ -15,7 +15,7 @@ use vgps_core::matcher::{
 use vgps_geometry::attitude::HeadingPitchRoll;
 use vgps_geometry::geo::{Geodetic, LocalFrame};
 use vgps_geometry::geometry::Ray;
-use vgps_io::{InputError, Landmark, Measurement, ObservationRecord};
+use vgps_io::{InputError, Landmark, MeasurementRecord, ObservationRecord};
 
 /// Status of a frame whose observations carry no landmark ids when neither `--prior` nor
 /// `--region` says where to search.
@@ -429,12 +429,12 @@ fn resolve_observations(
     let mut rays: Vec<Ray> = Vec::with_capacity(input.observations.len());
     for o in input.observations {
         let ray = match (&o.measurement, input.rig) {
-            (Measurement::Bearing(b), _) => {
+            (MeasurementRecord::Bearing(b), _) => {
                 Ray::try_new(Vector3::zeros(), *b).ok_or_else(|| {
                     InputError::field(observations_path, o.line, "bx", "zero bearing")
                 })?
             }
-            (Measurement::Pixel { .. }, None) => {
+            (MeasurementRecord::Pixel { .. }, None) => {
                 return Err(InputError::field(
                     observations_path,
                     o.line,
@@ -443,7 +443,7 @@ fn resolve_observations(
                 )
                 .into());
             }
-            (Measurement::Pixel { camera, u, v }, Some(rig)) => {
+            (MeasurementRecord::Pixel { camera, u, v }, Some(rig)) => {
                 let index: usize = camera.parse().map_err(|_| {
                     InputError::field(
                         observations_path,

@@ -47,7 +47,7 @@ pub mod table;
 pub use atomic::write_atomic;
 pub use landmarks::{Landmark, landmarks_from_reader, read_landmarks};
 pub use observations::{
-    Measurement, ObservationRecord, observations_from_reader, read_observations,
+    MeasurementRecord, ObservationRecord, observations_from_reader, read_observations,
 };
 pub use rays::{RayRecord, rays_from_reader, read_rays};
 

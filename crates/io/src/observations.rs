@@ -14,7 +14,7 @@ const EXPECTED: &str = "[frame,](bx,by,bz | camera,u,v)[,landmark]";
 
 /// What was measured for one observation.
 #[derive(Clone, Debug, PartialEq)]
-pub enum Measurement {
+pub enum MeasurementRecord {
     /// A unit bearing in the rig frame (x forward, y left, z up).
     Bearing(Vector3<f64>),
     /// A pixel of one camera of the rig; a rig calibration turns it into a ray.
@@ -35,7 +35,7 @@ pub struct ObservationRecord {
     /// column.
     pub frame: u64,
     /// The measured direction.
-    pub measurement: Measurement,
+    pub measurement: MeasurementRecord,
     /// The id of the landmark seen, when known (`None`: empty or no `landmark` column).
     pub landmark: Option<String>,
     /// The 1-based line of the row in its file.
@@ -93,7 +93,7 @@ pub fn observations_from_reader<R: Read>(
         let row = row?;
         let frame = frame(&row)?;
         let measurement = if pixels {
-            Measurement::Pixel {
+            MeasurementRecord::Pixel {
                 camera: row.required_str("camera")?.to_string(),
                 u: row.required_f64("u")?,
                 v: row.required_f64("v")?,
@@ -110,7 +110,7 @@ pub fn observations_from_reader<R: Read>(
                     "zero bearing: (bx, by, bz) must have a non-zero length",
                 )
             })?;
-            Measurement::Bearing(unit)
+            MeasurementRecord::Bearing(unit)
         };
         out.push(ObservationRecord {
             frame,
@@ -152,11 +152,11 @@ mod tests {
         let o = read("frame,bx,by,bz,landmark\n3,2,0,0,a\n3,0,0,-0.5,\n1,1,1,0,c\n").unwrap();
         assert_eq!(o.len(), 3);
         assert_eq!(o[0].frame, 3);
-        assert_eq!(o[0].measurement, Measurement::Bearing(Vector3::x()));
+        assert_eq!(o[0].measurement, MeasurementRecord::Bearing(Vector3::x()));
         assert_eq!(o[0].landmark.as_deref(), Some("a"));
-        assert_eq!(o[1].measurement, Measurement::Bearing(-Vector3::z()));
+        assert_eq!(o[1].measurement, MeasurementRecord::Bearing(-Vector3::z()));
         assert_eq!((o[1].landmark.as_deref(), o[1].line), (None, 3));
-        let Measurement::Bearing(b) = &o[2].measurement else {
+        let MeasurementRecord::Bearing(b) = &o[2].measurement else {
             panic!("not a bearing")
         };
         assert!((b.norm() - 1.0).abs() < 1e-15);
@@ -168,7 +168,7 @@ mod tests {
         assert_eq!(o[0].frame, 0);
         assert_eq!(
             o[0].measurement,
-            Measurement::Pixel {
+            MeasurementRecord::Pixel {
                 camera: "2".into(),
                 u: 100.5,
                 v: 30.0

@@ -507,17 +507,17 @@ fn _locate<'py>(
     up_tolerance_deg: Option<f64>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let (landmarks, landmarks_path) = landmarks_arg(landmarks)?;
-    let measurements: Vec<vgps_io::Measurement> = match (&bearings, &pixels) {
+    let measurements: Vec<vgps_io::MeasurementRecord> = match (&bearings, &pixels) {
         (Some(b), None) => rows::<3>("bearings", &b.as_array())?
             .into_iter()
-            .map(|b| vgps_io::Measurement::Bearing(Vector3::from(b)))
+            .map(|b| vgps_io::MeasurementRecord::Bearing(Vector3::from(b)))
             .collect(),
         (None, Some(p)) => {
             let p = rows::<2>("pixels", &p.as_array())?;
             let cams = cameras_arg(camera, p.len())?;
             p.into_iter()
                 .zip(cams)
-                .map(|([u, v], c)| vgps_io::Measurement::Pixel {
+                .map(|([u, v], c)| vgps_io::MeasurementRecord::Pixel {
                     camera: c.to_string(),
                     u,
                     v,

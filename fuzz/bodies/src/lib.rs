@@ -407,11 +407,11 @@ pub fn observations_csv(data: &[u8]) {
     };
     for o in &obs {
         match &o.measurement {
-            vgps_io::Measurement::Bearing(b) => {
+            vgps_io::MeasurementRecord::Bearing(b) => {
                 assert_vec_finite(b, "bearing");
                 assert!(b.norm() > 0.0, "zero bearing");
             }
-            vgps_io::Measurement::Pixel { u, v, .. } => {
+            vgps_io::MeasurementRecord::Pixel { u, v, .. } => {
                 assert!(u.is_finite() && v.is_finite(), "pixel ({u}, {v})");
             }
         }
