@@ -6,7 +6,7 @@
 use nalgebra::{Matrix2, UnitQuaternion, Vector3};
 use rand_distr::{Distribution, Normal};
 use vgps::geo::{Geodetic, LocalFrame};
-use vgps::report::{DriveInfo, FrameReport, Truth, VisualFix, summary_table, write_outputs};
+use vgps::report::{DriveInfo, FrameOutcome, Truth, VisualFix, summary_table, write_outputs};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let out = std::env::args()
@@ -75,7 +75,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             })
         });
         let visual = visual.transpose()?;
-        records.push(FrameReport {
+        records.push(FrameOutcome {
             frame: i as u64,
             time_s: 1_700_000_000.0 + 0.5 * i as f64,
             status: if no_fix { "no_fix" } else { "ok" }.into(),

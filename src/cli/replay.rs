@@ -22,7 +22,7 @@ use vgps_import::mcap_import::{FrameStream, RecordingImages};
 use vgps_replay::drive::gnss::gnss_at;
 use vgps_replay::drive::{Drive, FrameStatus};
 use vgps_replay::frame_images::ImageDetector;
-use vgps_replay::report::{DriveInfo, FrameReport, Report, Truth, VisualFix, summary_table};
+use vgps_replay::report::{DriveInfo, FrameOutcome, Report, Truth, VisualFix, summary_table};
 
 /// The status of a frame none of whose images could be used.
 pub const BAD_IMAGE_STATUS: &str = "bad_image";
@@ -315,7 +315,7 @@ impl FrameStep<'_, '_> {
         f: &vgps_replay::drive::FrameRecord,
         d: FrameDetections<'_>,
         err: &mut dyn Write,
-    ) -> FrameReport {
+    ) -> FrameOutcome {
         let gnss = gnss_at(self.drive.gnss(), f.time_s);
         let truth = self.drive.truth_of(f.frame).map(|t| Truth {
             geodetic: t.position,
@@ -362,7 +362,7 @@ impl FrameStep<'_, '_> {
                 )
             }
         };
-        FrameReport {
+        FrameOutcome {
             frame: f.frame,
             time_s: f.time_s,
             status,

@@ -7,7 +7,7 @@ use super::value_enums::PaceArg;
 use std::io::Write;
 use std::path::PathBuf;
 use vgps_replay::live::{NmeaTcpServer, Pacer};
-use vgps_replay::report::{DriveInfo, FrameReport};
+use vgps_replay::report::{DriveInfo, FrameOutcome};
 
 /// The robot-stack options of `vgps replay`.
 #[derive(Debug, Clone, Default, clap::Args)]
@@ -66,7 +66,7 @@ impl LiveStream {
     }
 
     /// Sends one frame at its time (nothing without a stream).
-    pub fn send(&mut self, record: &FrameReport, err: &mut dyn Write) {
+    pub fn send(&mut self, record: &FrameOutcome, err: &mut dyn Write) {
         let Some(server) = &mut self.server else {
             return;
         };
@@ -110,7 +110,7 @@ impl LiveStream {
 pub fn write_mcap(
     args: &RobotOutputArgs,
     drive: &DriveInfo,
-    records: &[FrameReport],
+    records: &[FrameOutcome],
 ) -> Result<(), super::CliError> {
     let Some(path) = &args.mcap else {
         return Ok(());

@@ -18,7 +18,7 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 use vgps_geometry::geo::{Geodetic, LocalFrame};
 use vgps_replay::report::{
-    DriveInfo, FrameReport, MapExtras, Report, Truth, VisualFix, report_html_with,
+    DriveInfo, FrameOutcome, MapExtras, Report, Truth, VisualFix, report_html_with,
 };
 
 /// Frames of the report: as many as the reference drive has.
@@ -31,7 +31,7 @@ fn origin() -> Geodetic {
 /// A 3,255-frame drive around a 400 m × 300 m block: truth on the block, satellite 2 m
 /// off with blackouts, visual fixes within centimetres with their covariance, every fifth
 /// frame without a fix; a landmark every 25 m.
-fn drive() -> (DriveInfo, Vec<FrameReport>, MapExtras) {
+fn drive() -> (DriveInfo, Vec<FrameOutcome>, MapExtras) {
     let local = LocalFrame::new(origin());
     let at = |s: f64| {
         let s = s.rem_euclid(1400.0);
@@ -102,7 +102,7 @@ fn drive() -> (DriveInfo, Vec<FrameReport>, MapExtras) {
                     n_surrogates: (k % 2) as usize,
                 }
             });
-            FrameReport {
+            FrameOutcome {
                 frame: k,
                 time_s: 1_778_794_200.0 + 0.1 * k as f64,
                 status: if visual.is_some() { "ok" } else { "no_fix" }.into(),

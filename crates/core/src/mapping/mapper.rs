@@ -80,7 +80,7 @@ impl MapperOptions {
 pub const MAX_PAIRWISE_RAYS: usize = 16;
 
 /// Where an observation came from: (frame number in the order added, index in the frame).
-pub(crate) type Source = (usize, usize);
+pub(crate) type ObservationSource = (usize, usize);
 
 /// One track: a tentative or confirmed landmark.
 #[derive(Clone, Debug)]
@@ -92,7 +92,7 @@ struct Track {
     effective: Vec<RayObservation>,
     /// The [`PoseSpread`] of each ray (for the cheap gate bounds).
     spreads: Vec<PoseSpread>,
-    sources: Vec<Source>,
+    sources: Vec<ObservationSource>,
     sum: RaySum,
     estimate: Option<TriangulatedPoint>,
     last_seen_s: f64,
@@ -125,7 +125,7 @@ impl Track {
         class: Option<u32>,
         ray: MapRay,
         eff: RayObservation,
-        source: Source,
+        source: ObservationSource,
         t: f64,
         floor: &Matrix3<f64>,
     ) -> Result<Self, TriangulationError> {
@@ -154,7 +154,7 @@ impl Track {
         &mut self,
         ray: MapRay,
         eff: RayObservation,
-        source: Source,
+        source: ObservationSource,
         t: f64,
         min_parallax: f64,
         max_range_m: f64,

@@ -3,7 +3,7 @@
 //! backend (the plots inlined in `report.html`). Only the [`Look`] (sizes, fonts, caption)
 //! differs between the two.
 
-use super::FrameReport;
+use super::FrameOutcome;
 use super::ReportError;
 use super::derived::{FrameGeom, runs};
 use plotters::coord::Shift;
@@ -242,7 +242,7 @@ type Series<'a> = (
 /// wider, the visual curve on top of it.
 pub(crate) fn draw_error_vs_time<DB: DrawingBackend>(
     c: &Canvas<'_, DB>,
-    records: &[FrameReport],
+    records: &[FrameOutcome],
     geom: &[FrameGeom],
 ) -> Result<(), ReportError> {
     let t0 = records

@@ -1,7 +1,7 @@
 //! `fixes.csv`: one row per frame.
 
 use super::derived::{derive, finite};
-use super::{DriveInfo, FrameReport};
+use super::{DriveInfo, FrameOutcome};
 use vgps_geometry::geo::Geodetic;
 
 /// The columns of `fixes.csv` present for every drive.
@@ -37,7 +37,7 @@ pub const TRUTH_COLUMNS: [&str; 6] = [
 ];
 
 /// The column appended (last) when any record's detections came from the images
-/// ([`FrameReport::unusable_images`] is `Some`): the number of the frame's images that could
+/// ([`FrameOutcome::unusable_images`] is `Some`): the number of the frame's images that could
 /// not be used.
 pub const IMAGE_COLUMNS: [&str; 1] = ["unusable_images"];
 
@@ -77,7 +77,7 @@ fn push_geodetic(row: &mut Vec<String>, g: Option<&Geodetic>) {
 /// record. Missing values are empty fields; latitudes and
 /// longitudes have 9 decimals, metres 3, degrees 4, times 6. Lines end in `\n`; the status
 /// is quoted only if it contains a comma, quote or newline.
-pub fn fixes_csv(drive: &DriveInfo, records: &[FrameReport]) -> String {
+pub fn fixes_csv(drive: &DriveInfo, records: &[FrameOutcome]) -> String {
     let geom = derive(drive, records);
     let with_truth = records.iter().any(|r| r.truth.is_some());
     let mut w = csv::WriterBuilder::new()

@@ -1,7 +1,7 @@
 //! Per-frame geometry shared by every output: ENU positions at the drive origin and the
 //! differences between the visual, satellite and true positions.
 
-use super::{DriveInfo, FrameReport};
+use super::{DriveInfo, FrameOutcome};
 use nalgebra::{Vector2, Vector3};
 use vgps_geometry::geo::{Geodetic, LocalFrame};
 
@@ -61,7 +61,7 @@ fn diff(a: Option<Vector3<f64>>, b: Option<Vector3<f64>>) -> Option<Diff> {
 }
 
 /// The geometry of every record, in the records' order.
-pub(crate) fn derive(drive: &DriveInfo, records: &[FrameReport]) -> Vec<FrameGeom> {
+pub(crate) fn derive(drive: &DriveInfo, records: &[FrameOutcome]) -> Vec<FrameGeom> {
     let frame = LocalFrame::new(drive.origin);
     records
         .iter()

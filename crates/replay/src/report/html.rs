@@ -19,7 +19,7 @@ use super::stats::{Comparison, Report};
 use super::text::summary_table;
 use super::time::utc_iso8601;
 use super::tracks::xml_escape;
-use super::{DriveInfo, FrameReport, MIN_SURVEYED_LANDMARKS};
+use super::{DriveInfo, FrameOutcome, MIN_SURVEYED_LANDMARKS};
 use std::collections::{BTreeMap, HashMap};
 use std::fmt::Write;
 
@@ -109,7 +109,7 @@ fn jlatlon(s: &mut String, g: &vgps_geometry::geo::Geodetic) {
 }
 
 /// The map's data: `window.VGPS = {…}` (see `assets/report/map.js` for the row layout).
-fn map_data(drive: &DriveInfo, records: &[FrameReport], extras: &MapExtras) -> String {
+fn map_data(drive: &DriveInfo, records: &[FrameOutcome], extras: &MapExtras) -> String {
     let mut s = String::from("window.VGPS={\"name\":");
     jstr(&mut s, &drive.name);
     s.push_str(",\"origin\":");
@@ -223,7 +223,7 @@ fn script(s: &mut String, body: &str) {
 }
 
 /// `report.html` without landmarks: [`report_html_with`] and an empty [`MapExtras`].
-pub fn report_html(drive: &DriveInfo, records: &[FrameReport], report: &Report) -> String {
+pub fn report_html(drive: &DriveInfo, records: &[FrameOutcome], report: &Report) -> String {
     report_html_with(drive, records, report, &MapExtras::default())
 }
 
@@ -239,7 +239,7 @@ pub fn report_html(drive: &DriveInfo, records: &[FrameReport], report: &Report) 
 /// drawn is replaced by its error message.
 pub fn report_html_with(
     drive: &DriveInfo,
-    records: &[FrameReport],
+    records: &[FrameOutcome],
     report: &Report,
     extras: &MapExtras,
 ) -> String {

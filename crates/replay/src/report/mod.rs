@@ -1,7 +1,7 @@
 //! The outputs of `vgps replay`: statistics, tables and track files from per-frame records.
 //!
 //! The replay command runs the localizer over a drive and hands this module one
-//! [`FrameReport`] per frame (the visual fix if any, the satellite position interpolated at
+//! [`FrameOutcome`] per frame (the visual fix if any, the satellite position interpolated at
 //! the frame time if any, and the ground truth if the drive has one) plus the drive's
 //! metadata ([`DriveInfo`]). This module is a library over that plain data:
 //!
@@ -27,11 +27,11 @@
 //! # Example
 //! ```
 //! use vgps_geometry::geo::Geodetic;
-//! use vgps_replay::report::{DriveInfo, FrameReport, Report, Truth};
+//! use vgps_replay::report::{DriveInfo, FrameOutcome, Report, Truth};
 //! let origin = Geodetic::try_new(48.0, 11.0, 500.0)?;
 //! let drive = DriveInfo { name: "demo".into(), origin };
-//! let records: Vec<FrameReport> = (0..4)
-//!     .map(|i| FrameReport {
+//! let records: Vec<FrameOutcome> = (0..4)
+//!     .map(|i| FrameOutcome {
 //!         frame: i,
 //!         time_s: 1_700_000_000.0 + i as f64,
 //!         status: "no_fix".into(),
@@ -173,7 +173,7 @@ pub struct Truth {
 
 /// Everything the report knows about one frame.
 #[derive(Clone, Debug, PartialEq)]
-pub struct FrameReport {
+pub struct FrameOutcome {
     /// Frame index in the drive.
     pub frame: u64,
     /// Capture time: Unix seconds, UTC.
@@ -255,7 +255,7 @@ pub const OUTPUT_FILES: [&str; 10] = [
 pub fn write_outputs(
     dir: &Path,
     drive: &DriveInfo,
-    records: &[FrameReport],
+    records: &[FrameOutcome],
 ) -> Result<(Report, Vec<PathBuf>), ReportError> {
     write_outputs_with(dir, drive, records, &MapExtras::default())
 }
@@ -268,7 +268,7 @@ pub fn write_outputs(
 pub fn write_outputs_with(
     dir: &Path,
     drive: &DriveInfo,
-    records: &[FrameReport],
+    records: &[FrameOutcome],
     extras: &MapExtras,
 ) -> Result<(Report, Vec<PathBuf>), ReportError> {
     std::fs::create_dir_all(dir).map_err(|e| ReportError::Io {

@@ -27,7 +27,7 @@
 //! RMC carries the date, speed and course (mode `A`); a frame without a fix is GGA quality 0
 //! and RMC status `V`, as a receiver keeps talking when it loses its fix.
 
-use super::FrameReport;
+use super::FrameOutcome;
 use super::VisualFix;
 use super::derived::{finite, wrap_deg};
 use super::time::utc_fields;
@@ -227,7 +227,7 @@ impl NmeaEpochWriter {
 
 /// `fixes.nmea`: the sentences of [`NmeaEpochWriter::epoch`] for every frame, in order
 /// (frames with a non-finite time are skipped).
-pub fn fixes_nmea(records: &[FrameReport]) -> String {
+pub fn fixes_nmea(records: &[FrameOutcome]) -> String {
     let mut writer = NmeaEpochWriter::new();
     records
         .iter()

@@ -11,7 +11,7 @@
 
 use super::charts::{Canvas, Look, draw_error_cdf, draw_error_vs_time, draw_track};
 use super::derived::{FrameGeom, derive};
-use super::{DriveInfo, FrameReport, ReportError};
+use super::{DriveInfo, FrameOutcome, ReportError};
 use plotters::prelude::*;
 use plotters::style::FontStyle;
 use std::sync::Once;
@@ -127,7 +127,7 @@ fn svg(
 ///
 /// # Errors
 /// [`ReportError::Plot`] if drawing or encoding fails.
-pub fn plot_track_png(drive: &DriveInfo, records: &[FrameReport]) -> Result<Vec<u8>, ReportError> {
+pub fn plot_track_png(drive: &DriveInfo, records: &[FrameOutcome]) -> Result<Vec<u8>, ReportError> {
     const WHAT: &str = "track.png";
     let caption = format!("{}: track (ENU metres)", drive.name);
     let geom = derive(drive, records);
@@ -141,7 +141,7 @@ pub fn plot_track_png(drive: &DriveInfo, records: &[FrameReport]) -> Result<Vec<
 ///
 /// # Errors
 /// [`ReportError::Plot`] if drawing or encoding fails.
-pub fn plot_error_png(drive: &DriveInfo, records: &[FrameReport]) -> Result<Vec<u8>, ReportError> {
+pub fn plot_error_png(drive: &DriveInfo, records: &[FrameOutcome]) -> Result<Vec<u8>, ReportError> {
     const WHAT: &str = "error.png";
     let caption = format!("{}: horizontal error", drive.name);
     let geom = derive(drive, records);
@@ -150,7 +150,7 @@ pub fn plot_error_png(drive: &DriveInfo, records: &[FrameReport]) -> Result<Vec<
 
 /// `report.html`'s error plot as SVG (see [`plot_error_png`]).
 pub(crate) fn error_vs_time_svg(
-    records: &[FrameReport],
+    records: &[FrameOutcome],
     geom: &[FrameGeom],
 ) -> Result<String, ReportError> {
     svg("report.html error plot", |c| {

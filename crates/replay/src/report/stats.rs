@@ -2,7 +2,7 @@
 //! heading, covariance consistency and drift on surrogate-only stretches.
 
 use super::derived::{Diff, FrameGeom, derive, runs};
-use super::{CHI2_2DOF_95, DriveInfo, ELLIPSE_PROBABILITY, FrameReport, MIN_SURVEYED_LANDMARKS};
+use super::{CHI2_2DOF_95, DriveInfo, ELLIPSE_PROBABILITY, FrameOutcome, MIN_SURVEYED_LANDMARKS};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use vgps_geometry::geo::Geodetic;
@@ -232,7 +232,7 @@ impl Report {
     /// Frames count whatever their status; a comparison uses the frames where both of its
     /// positions exist; a blackout frame is one without a satellite position. See
     /// `docs/replay-report.md` for every definition.
-    pub fn compute(drive: &DriveInfo, records: &[FrameReport]) -> Report {
+    pub fn compute(drive: &DriveInfo, records: &[FrameOutcome]) -> Report {
         let geom = derive(drive, records);
         let frames = records.len() as u64;
         let visual_fixes = records.iter().filter(|r| r.visual.is_some()).count() as u64;
@@ -317,7 +317,7 @@ impl Report {
 /// A frame whose images were all unusable has this status (and is not "partially usable").
 const BAD_IMAGE_STATUS: &str = "bad_image";
 
-fn image_accounting(records: &[FrameReport]) -> Option<ImageAccounting> {
+fn image_accounting(records: &[FrameOutcome]) -> Option<ImageAccounting> {
     let from_images: Vec<(u32, &str)> = records
         .iter()
         .filter_map(|r| r.unusable_images.map(|n| (n, r.status.as_str())))
@@ -335,7 +335,7 @@ fn image_accounting(records: &[FrameReport]) -> Option<ImageAccounting> {
 }
 
 fn covariance_consistency(
-    records: &[FrameReport],
+    records: &[FrameOutcome],
     geom: &[FrameGeom],
 ) -> Option<CovarianceConsistency> {
     let mut n = 0u64;
@@ -359,7 +359,7 @@ fn covariance_consistency(
     })
 }
 
-fn surrogate_drift(records: &[FrameReport], geom: &[FrameGeom]) -> Option<SurrogateDrift> {
+fn surrogate_drift(records: &[FrameOutcome], geom: &[FrameGeom]) -> Option<SurrogateDrift> {
     let surrogate: Vec<bool> = records
         .iter()
         .map(|r| r.visual.as_ref().is_some_and(|v| v.is_surrogate_only()))

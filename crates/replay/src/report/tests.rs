@@ -45,12 +45,12 @@ fn fix(g: Geodetic, heading_deg: f64, n_landmarks: usize, n_surrogates: usize) -
 /// Ten frames along the east axis (10 m apart); the visual fix of frame i is (i + 1) m
 /// east and 2 m above the truth; the satellite is exact except in frames 3–5 and 8
 /// (blackout); every frame has a fix; the true heading turns from 359° to 350°.
-fn known_records() -> Vec<FrameReport> {
+fn known_records() -> Vec<FrameOutcome> {
     (0..10u64)
         .map(|i| {
             let x = 10.0 * i as f64;
             let gnss_missing = matches!(i, 3..=5 | 8);
-            FrameReport {
+            FrameOutcome {
                 frame: 100 + i,
                 time_s: T0 + 0.5 * i as f64,
                 status: "ok".into(),
@@ -127,7 +127,7 @@ fn quantile_convention() {
 
 /// Frames 0 (anchored, 5 landmarks), 1–4 surrogate-only with an error of 10 % of the
 /// distance travelled since frame 0, 5 without fix, 6–7 surrogate-only again.
-fn drift_records() -> Vec<FrameReport> {
+fn drift_records() -> Vec<FrameOutcome> {
     (0..8u64)
         .map(|i| {
             let x = 20.0 * i as f64;
@@ -136,7 +136,7 @@ fn drift_records() -> Vec<FrameReport> {
                 5 => None,
                 _ => Some(fix(at(x, 0.1 * x, 0.0), 90.0, 1, 4)),
             };
-            FrameReport {
+            FrameOutcome {
                 frame: i,
                 time_s: T0 + i as f64,
                 status: if visual.is_some() { "ok" } else { "no_fix" }.into(),
@@ -174,7 +174,7 @@ fn surrogate_drift_ratio() {
 
 /// Records with gaps and non-finite values: a NaN sigma and heading, a no-fix frame,
 /// a frame without satellite and without truth.
-fn awkward_records() -> Vec<FrameReport> {
+fn awkward_records() -> Vec<FrameOutcome> {
     let mut rs = known_records();
     if let Some(v) = rs[2].visual.as_mut() {
         v.sigma_e_m = f64::NAN;
@@ -227,7 +227,7 @@ fn csv_round_trip() {
     assert_eq!(&rows[0][col("err_v_m")], "2.000");
     assert_eq!(&rows[4][col("status")], "bad_image");
     // Without any truth the truth columns are absent.
-    let no_truth: Vec<FrameReport> = recs
+    let no_truth: Vec<FrameOutcome> = recs
         .into_iter()
         .map(|mut r| {
             r.truth = None;
@@ -272,7 +272,7 @@ fn geojson_round_trip() {
     );
     // visual: runs 0–3 and 5–9; gnss: 0–2, 7; truth: 0–5, 7–9 (runs of one point dropped).
     assert_eq!(lines.len(), 2 + 1 + 2);
-    let with_fix: Vec<&FrameReport> = recs.iter().filter(|r| r.visual.is_some()).collect();
+    let with_fix: Vec<&FrameOutcome> = recs.iter().filter(|r| r.visual.is_some()).collect();
     for ((f, p), r) in points.iter().zip(&with_fix) {
         let g = r.visual.as_ref().unwrap().geodetic;
         assert!((p[0] - g.lon_deg).abs() < 1e-9 && (p[1] - g.lat_deg).abs() < 1e-9);
@@ -316,7 +316,7 @@ fn gpx_round_trip() {
         (runs(0), runs(1), runs(2)),
         (vec![10], vec![3, 2, 1], vec![10])
     );
-    type Get = fn(&FrameReport) -> Option<Geodetic>;
+    type Get = fn(&FrameOutcome) -> Option<Geodetic>;
     let getters: [Get; 3] = [
         |r| r.visual.as_ref().map(|v| v.geodetic),
         |r| r.gnss,
@@ -324,7 +324,7 @@ fn gpx_round_trip() {
     ];
     for (track, get) in gpx.tracks.iter().zip(getters) {
         let points = track.segments.iter().flat_map(|s| &s.points);
-        let written: Vec<&FrameReport> = recs.iter().filter(|r| get(r).is_some()).collect();
+        let written: Vec<&FrameOutcome> = recs.iter().filter(|r| get(r).is_some()).collect();
         assert_eq!(points.clone().count(), written.len());
         for (p, r) in points.zip(written) {
             let g = get(r).unwrap();

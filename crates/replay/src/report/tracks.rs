@@ -3,13 +3,13 @@
 use super::csv_out::{ANGLE_DECIMALS, LATLON_DECIMALS, METRE_DECIMALS, fmt_opt};
 use super::derived::{derive, finite, runs};
 use super::time::utc_iso8601;
-use super::{DriveInfo, FrameReport};
+use super::{DriveInfo, FrameOutcome};
 use serde_json::{Map, Value, json};
 use std::fmt::Write;
 use vgps_geometry::geo::Geodetic;
 
 /// The three tracks: name, position getter, KML colour (`aabbggrr`).
-type Getter = fn(&FrameReport) -> Option<&Geodetic>;
+type Getter = fn(&FrameOutcome) -> Option<&Geodetic>;
 const TRACKS: [(&str, Getter, &str); 3] = [
     (
         "visual",
@@ -41,7 +41,7 @@ fn position(g: &Geodetic) -> Value {
 }
 
 /// The runs (index ranges) of consecutive records that have a position on `track`.
-fn segments(records: &[FrameReport], get: Getter) -> Vec<(usize, usize)> {
+fn segments(records: &[FrameOutcome], get: Getter) -> Vec<(usize, usize)> {
     runs(records.iter().map(|r| get(r).is_some()))
 }
 
@@ -53,7 +53,7 @@ fn segments(records: &[FrameReport], get: Getter) -> Vec<(usize, usize)> {
 ///   `status`, `heading_deg`, `pitch_deg`, `roll_deg`, `sigma_e_m`, `sigma_n_m`,
 ///   `sigma_u_m`, `n_landmarks`, `n_surrogates`, `blackout`, and `err_h_m` / `diff_h_m`
 ///   when truth / satellite exist.
-pub fn track_geojson(drive: &DriveInfo, records: &[FrameReport]) -> String {
+pub fn track_geojson(drive: &DriveInfo, records: &[FrameOutcome]) -> String {
     let geom = derive(drive, records);
     let mut features = Vec::new();
     for (name, get, _) in TRACKS {
@@ -156,7 +156,7 @@ fn kml_coord(g: &Geodetic) -> String {
 /// ellipsoidal, not above the terrain), and a Folder `fixes` with one `Point` Placemark per
 /// visual fix (name = frame, `TimeStamp`, a description with status, heading, σ and
 /// landmark counts). Coordinates are `lon,lat,alt`.
-pub fn track_kml(drive: &DriveInfo, records: &[FrameReport]) -> String {
+pub fn track_kml(drive: &DriveInfo, records: &[FrameOutcome]) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
@@ -263,7 +263,7 @@ fn gpx_point(g: &Geodetic, time_s: f64) -> Option<gpx::Waypoint> {
 }
 
 /// The GPX document of [`track_gpx`].
-fn gpx_document(drive: &DriveInfo, records: &[FrameReport]) -> gpx::Gpx {
+fn gpx_document(drive: &DriveInfo, records: &[FrameOutcome]) -> gpx::Gpx {
     // XML 1.0 allows no control characters but tab and line breaks.
     let name: String = drive
         .name
@@ -321,7 +321,7 @@ fn gpx_document(drive: &DriveInfo, records: &[FrameReport]) -> gpx::Gpx {
 /// (`visual`, `gnss`, `truth`), one `trkseg` per run of consecutive frames, each `trkpt`
 /// with `lat`/`lon` (9 decimals), `ele` (ellipsoidal height, millimetres), `time` (UTC, to
 /// the millisecond) and, for visual fixes, `sat` (landmarks + surrogates).
-pub fn track_gpx(drive: &DriveInfo, records: &[FrameReport]) -> String {
+pub fn track_gpx(drive: &DriveInfo, records: &[FrameOutcome]) -> String {
     let mut bytes = Vec::new();
     // The writer fails only on an I/O error (none: it writes to memory), a version other
     // than 1.0/1.1 or a time it cannot format (`gpx_time` leaves those out).

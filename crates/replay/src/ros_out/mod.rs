@@ -12,10 +12,10 @@
 //! # Example
 //! ```
 //! use vgps_geometry::geo::Geodetic;
-//! use vgps_replay::report::{DriveInfo, FrameReport};
+//! use vgps_replay::report::{DriveInfo, FrameOutcome};
 //! use vgps_replay::ros_out::mcap_bytes;
 //! let drive = DriveInfo { name: "empty".into(), origin: Geodetic::try_new(48.0, 11.0, 500.0)? };
-//! let records: Vec<FrameReport> = Vec::new();
+//! let records: Vec<FrameOutcome> = Vec::new();
 //! let bytes = mcap_bytes(&drive, &records)?;
 //! assert!(bytes.starts_with(b"\x89MCAP0\r\n"));
 //! # Ok::<(), Box<dyn std::error::Error>>(())
@@ -24,7 +24,7 @@
 pub mod cdr;
 pub mod msgs;
 
-use crate::report::{DriveInfo, FrameReport, VisualFix};
+use crate::report::{DriveInfo, FrameOutcome, VisualFix};
 use nalgebra::Matrix3;
 use std::collections::BTreeMap;
 use std::io::Cursor;
@@ -113,7 +113,7 @@ pub fn fix_messages(
 ///
 /// # Errors
 /// [`RosOutError::Mcap`] if the MCAP writer fails (it writes to memory).
-pub fn mcap_bytes(drive: &DriveInfo, records: &[FrameReport]) -> Result<Vec<u8>, RosOutError> {
+pub fn mcap_bytes(drive: &DriveInfo, records: &[FrameOutcome]) -> Result<Vec<u8>, RosOutError> {
     let options = mcap::WriteOptions::new()
         .profile("ros2")
         .library(concat!("vgps ", env!("CARGO_PKG_VERSION")))
@@ -164,7 +164,7 @@ pub fn mcap_bytes(drive: &DriveInfo, records: &[FrameReport]) -> Result<Vec<u8>,
 pub fn write_mcap(
     path: &Path,
     drive: &DriveInfo,
-    records: &[FrameReport],
+    records: &[FrameOutcome],
 ) -> Result<(), RosOutError> {
     let bytes = mcap_bytes(drive, records)?;
     vgps_io::write_atomic(path, &bytes).map_err(|e| RosOutError::Io {

@@ -1,7 +1,7 @@
 //! The MCAP file read back with the `mcap` crate and the CDR decoded field by field.
 
 use super::*;
-use crate::report::FrameReport;
+use crate::report::FrameOutcome;
 use nalgebra::{Matrix2, Matrix6, UnitQuaternion, Vector3};
 use vgps_geometry::geo::Geodetic;
 
@@ -106,8 +106,8 @@ fn one_of_each_message_per_fix_with_the_fix_covariances() {
         origin: origin(),
     };
     let t0 = 1_778_794_200.0;
-    let records: Vec<FrameReport> = (0..5)
-        .map(|k| FrameReport {
+    let records: Vec<FrameOutcome> = (0..5)
+        .map(|k| FrameOutcome {
             frame: k,
             time_s: t0 + 0.1 * k as f64,
             status: if k == 2 { "no_fix" } else { "ok" }.into(),
@@ -119,7 +119,7 @@ fn one_of_each_message_per_fix_with_the_fix_covariances() {
         .collect();
     let bytes = mcap_bytes(&drive, &records).unwrap();
     let mut seen: BTreeMap<String, usize> = BTreeMap::new();
-    let fixes: Vec<&FrameReport> = records.iter().filter(|r| r.visual.is_some()).collect();
+    let fixes: Vec<&FrameOutcome> = records.iter().filter(|r| r.visual.is_some()).collect();
     for message in mcap::MessageStream::new(&bytes).unwrap() {
         let m = message.unwrap();
         let schema = m.channel.schema.as_ref().unwrap();
