@@ -207,3 +207,34 @@ fn matcher_target_skips_areas_of_many_cells() {
     vgps_fuzz_bodies::matcher(&data);
     const { assert!(vgps_fuzz_bodies::MATCHER_MAX_FUZZ_CELLS < vgps::matcher::MAX_CELLS as f64) };
 }
+
+/// `mcap_read` crash-c65b0e06 (2026-11-27): an attachment record of 32 bytes (its header
+/// and data length, no room for its CRC) made the `mcap` crate (0.26) slice
+/// `body[32..body.len() - 4]` and panic. vgps now parses only the records it uses
+/// (schema, channel, message, chunk), and refuses a chunk holding anything else.
+#[test]
+fn mcap_short_attachment_is_skipped() {
+    let mut data = b"\x89MCAP0\r\n".to_vec();
+    data.push(0x09);
+    data.extend_from_slice(&32u64.to_le_bytes());
+    data.extend_from_slice(&[0u8; 32]);
+    vgps_fuzz_bodies::mcap_read(&data);
+}
+
+/// `nmea` crash-718cf595 (2026-11-27), a bug of the fuzz body, not of the reader: the body
+/// asserted at most one sentence used per line, but a line may hold several sentences
+/// (`$GPGGA…*hh$GPRMC…*hh`), each read. The body now bounds the sentences by the `$` count.
+#[test]
+fn nmea_two_sentences_on_one_line_are_both_used() {
+    use vgps::drive::nmea::{checksum, read_nmea};
+    let rmc = "GPRMC,120000.00,A,4807.038,N,01131.000,E,0.0,0.0,230394,,,A";
+    let gga = "GPGGA,120000.00,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,";
+    let line = format!("${rmc}*{:02X}${gga}*{:02X}\n", checksum(rmc), checksum(gga));
+    let (records, stats) = read_nmea(&line);
+    assert_eq!(
+        (stats.lines, stats.used, records.len()),
+        (1, 2, 1),
+        "{stats:?}"
+    );
+    vgps_fuzz_bodies::nmea(line.as_bytes());
+}

@@ -132,6 +132,21 @@ pub enum McapFileError {
     },
 }
 
+/// The top-level records read: schema, channel, message and chunk.
+const USED_OPCODES: [u8; 4] = [
+    mcap::records::op::SCHEMA,
+    mcap::records::op::CHANNEL,
+    mcap::records::op::MESSAGE,
+    mcap::records::op::CHUNK,
+];
+
+/// The records a chunk may hold (MCAP specification, "Chunk").
+const IN_CHUNK_OPCODES: [u8; 3] = [
+    mcap::records::op::SCHEMA,
+    mcap::records::op::CHANNEL,
+    mcap::records::op::MESSAGE,
+];
+
 #[derive(Default)]
 struct Channels {
     /// Schema id → (name, encoding).
@@ -278,6 +293,12 @@ pub fn read_mcap_until(
             LinearReadEvent::Record { data, opcode } => {
                 let record = summary.records;
                 summary.records += 1;
+                // Only the records vgps uses are parsed: the `mcap` crate (0.26) panics on an
+                // attachment shorter than its header says (`body.len() - 4` underflows), and
+                // the index and summary records are not needed for a linear read.
+                if !USED_OPCODES.contains(&opcode) {
+                    continue;
+                }
                 match mcap::parse_record(opcode, data) {
                     Ok(Record::Chunk { header, data }) => {
                         flow = read_chunk(
@@ -470,6 +491,12 @@ fn check_chunk_framing(data: &[u8]) -> Result<(), String> {
                 "record {index} at byte {at}: {rest} byte(s) left, fewer than a record header"
             ));
         };
+        if !IN_CHUNK_OPCODES.contains(&head[0]) {
+            return Err(format!(
+                "record {index} (opcode 0x{:02x}) at byte {at}: a chunk holds only schema, channel and message records",
+                head[0]
+            ));
+        }
         let mut len_bytes = [0u8; 8];
         len_bytes.copy_from_slice(&head[1..]);
         let len = u64::from_le_bytes(len_bytes);
@@ -758,6 +785,40 @@ mod tests {
         assert_eq!(times, (0..8).collect::<Vec<_>>());
         assert_eq!(s.messages, 8);
         assert!(s.problems.is_empty() && !s.truncated);
+    }
+
+    /// An attachment record of 32 bytes: its header (two times, two empty strings) and a
+    /// data length, with no room for the CRC the `mcap` crate slices off its end.
+    fn short_attachment() -> Vec<u8> {
+        let mut record = vec![0x09];
+        record.extend_from_slice(&32u64.to_le_bytes());
+        record.extend_from_slice(&[0u8; 32]);
+        record
+    }
+
+    #[test]
+    fn an_attachment_shorter_than_its_crc_is_skipped_not_a_panic() {
+        // Found by the `mcap_read` fuzz target (2026-11-27).
+        let mut bytes = sample(3, None);
+        let end = bytes.len() - 8; // before the end magic
+        bytes.splice(end..end, short_attachment());
+        let (times, s) = read(&bytes);
+        assert_eq!(times, vec![0, 1, 2]);
+        assert!(s.problems.is_empty(), "{s:?}");
+    }
+
+    #[test]
+    fn a_chunk_holding_an_attachment_is_refused_by_name() {
+        let (times, s) = read(&one_uncompressed_chunk(&short_attachment()));
+        assert!(times.is_empty());
+        assert_eq!((s.bad_chunks, s.chunks), (1, 0), "{s:?}");
+        assert!(
+            s.problems[0].reason.contains("(opcode 0x09)")
+                && s.problems[0]
+                    .reason
+                    .contains("only schema, channel and message"),
+            "{s:?}"
+        );
     }
 
     #[test]

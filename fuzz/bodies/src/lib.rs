@@ -477,8 +477,13 @@ pub fn drive_json(data: &[u8]) {
 
 /// Target `nmea`: [`vgps_replay::drive::nmea::read_nmea`].
 pub fn nmea(data: &[u8]) {
-    let (records, stats) = vgps_replay::drive::nmea::read_nmea(&text(data));
-    assert!(stats.used <= stats.lines);
+    let text = text(data);
+    let (records, stats) = vgps_replay::drive::nmea::read_nmea(&text);
+    // A line may hold several sentences: each sentence starts with a `$`, and a line is
+    // refused (garbage, checksum, truncated) at most once.
+    let sentences = text.matches('$').count();
+    assert!(stats.used + stats.invalid + stats.unsupported <= sentences);
+    assert!(stats.garbage + stats.bad_checksum + stats.truncated <= stats.lines);
     assert_gnss_records(&records);
 }
 
