@@ -6,9 +6,12 @@
 //! `calibration.json`, `frames.csv` and `images_truth.csv`). For every STEP-th frame (default
 //! 3) and each unclipped truth corner within MAX_RANGE_M (default 80 m, the matcher's
 //! visibility range), prints a tally of: found (a detection within 3 px), or the fate of
-//! the nearest candidate within 3 px (its [`Rejection`]), or no candidate within 3 px.
+//! the nearest candidate within 3 px (its `Rejection`), or no candidate within 3 px.
+//! With a fourth argument OUT.csv it writes instead the detections of those frames as a
+//! detections CSV (`VERTEX_MIN_EXTENT_PX` sets `VertexConfig::min_edge_extent_px`).
 
 use std::collections::BTreeMap;
+use std::io::Write;
 use std::path::Path;
 use vgps_camera::calibration::load;
 use vgps_camera::imaging::{DecodeLimits, Mask, VertexDetector, read_image};
@@ -43,7 +46,15 @@ fn main() {
             corners.entry((frame, cam)).or_default().push((u, v, r));
         }
     }
-    let detector = VertexDetector::default();
+    let mut detector = VertexDetector::default();
+    if let Some(x) = std::env::var("VERTEX_MIN_EXTENT_PX").ok().and_then(|x| x.parse().ok()) {
+        detector.config.min_edge_extent_px = x;
+    }
+    let mut out = args.get(4).map(|p| {
+        let mut f = std::io::BufWriter::new(std::fs::File::create(p).expect("output file"));
+        writeln!(f, "frame,camera,u,v,strength,class").expect("write");
+        f
+    });
     let masks: Vec<Option<Mask>> = (0..rig.len())
         .map(|k| rig.mask(k).map(Mask::from_camera_mask))
         .collect();
@@ -58,12 +69,23 @@ fn main() {
             continue;
         }
         for cam in 0..rig.len() {
-            let Some(truths) = corners.get(&(frame, cam)) else {
+            let none = Vec::new();
+            let truths = corners.get(&(frame, cam)).unwrap_or(&none);
+            if truths.is_empty() && out.is_none() {
                 continue;
-            };
+            }
             let image =
                 read_image(&drive.join(f[2 + cam]), &DecodeLimits::default()).expect("image");
             let model = &rig.cameras()[cam].model;
+            if let Some(f) = out.as_mut() {
+                for d in detector.detect(&image, Some(model), masks[cam].as_ref()) {
+                    writeln!(f, "{frame},{cam},{},{},{},corner", d.u, d.v, d.strength)
+                        .expect("write");
+                }
+            }
+            if out.is_some() {
+                continue;
+            }
             let explained = detector.explain(&image, Some(model), masks[cam].as_ref());
             for &(u, v, r) in truths {
                 let found = explained.iter().any(|c| {
