@@ -16,6 +16,9 @@ use std::path::Path;
 use vgps_camera::calibration::load;
 use vgps_camera::imaging::{DecodeLimits, Mask, VertexDetector, read_image};
 
+/// A truth corner: `(u, v, range_m)`.
+type TruthCorner = (f64, f64, f64);
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let Some(drive) = args.get(1).map(Path::new) else {
@@ -27,7 +30,7 @@ fn main() {
     let rig = load(&drive.join("calibration.json"), None, None).expect("calibration");
     let frames = std::fs::read_to_string(drive.join("frames.csv")).expect("frames.csv");
     let truth = std::fs::read_to_string(drive.join("images_truth.csv")).expect("truth");
-    let mut corners: BTreeMap<(usize, usize), Vec<(f64, f64, f64)>> = BTreeMap::new();
+    let mut corners: BTreeMap<(usize, usize), Vec<TruthCorner>> = BTreeMap::new();
     for line in truth.lines().skip(1) {
         let f: Vec<&str> = line.split(',').collect();
         if f.len() < 9 || f[2] != "corner" || f[8] == "true" {
@@ -47,7 +50,10 @@ fn main() {
         }
     }
     let mut detector = VertexDetector::default();
-    if let Some(x) = std::env::var("VERTEX_MIN_EXTENT_PX").ok().and_then(|x| x.parse().ok()) {
+    if let Some(x) = std::env::var("VERTEX_MIN_EXTENT_PX")
+        .ok()
+        .and_then(|x| x.parse().ok())
+    {
         detector.config.min_edge_extent_px = x;
     }
     let mut out = args.get(4).map(|p| {
