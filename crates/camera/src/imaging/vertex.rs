@@ -17,7 +17,10 @@
 //!    is the edge's sub-pixel centre line. With a camera model the pixels are first mapped to
 //!    the gnomonic plane tangent at the candidate's bearing (a *locally rectified patch*,
 //!    [`CameraModel::try_bearing`]), where the image of a straight 3-D edge is straight, and
-//!    the corner is mapped back with [`CameraModel::try_pixel`].
+//!    the corner is mapped back with [`CameraModel::try_pixel`]. The pixels' gradients are
+//!    turned into the plane too (by `J⁻ᵀ`, `J` the map's derivative at the candidate), so
+//!    that orientations and lines are compared in one frame (a fisheye turns directions by
+//!    up to 26° off its axis).
 //! 4. **Corner**: the least-squares intersection of the lines; lines and corner are refitted
 //!    [`REFINEMENT_PASSES`] times. A corner that moves more than
 //!    [`VertexConfig::max_shift_px`] from its candidate, or whose lines are too close to
@@ -375,8 +378,8 @@ impl VertexDetector {
 
     /// Every candidate of `image` in order of response, with what became of it: the corner
     /// it gave, or why it gave none (candidates past [`VertexConfig::max_candidates`] are
-    /// refined too, and marked [`Rejection::NotRanked`]; duplicates are not removed). For
-    /// diagnosis: [`VertexDetector::detect`] keeps the `Ok` ones among the ranked.
+    /// not refined: [`Rejection::NotRanked`]; duplicates are not removed). For diagnosis:
+    /// [`VertexDetector::detect`] keeps these `Ok` corners, less the duplicates.
     pub fn explain(
         &self,
         image: &GrayImage,
