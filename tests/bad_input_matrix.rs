@@ -1331,6 +1331,18 @@ fn rows() -> Vec<Row> {
             stderr: &["--pixel-sigma-px 0"],
         },
         Row {
+            name: "replay: zero visibility range",
+            setup: |t| {
+                drive(t);
+            },
+            args: &["replay", "{t}/d", "--quiet", "--visibility-range-m", "0"],
+            code: 2,
+            stderr: &[
+                "--visibility-range-m",
+                "`0` is not a positive finite number",
+            ],
+        },
+        Row {
             name: "replay: output directory under a regular file (fails before localizing)",
             setup: |t| {
                 drive(t);

@@ -159,6 +159,7 @@ fn replay_settings(
         gnss_prior: true,
         imu: true,
         up_tolerance_rad: None,
+        visibility_range_m: None,
         from_images,
         image_size: None,
         detector: vgps_replay::frame_images::DetectorKind::Point,

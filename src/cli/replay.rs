@@ -18,6 +18,7 @@ use vgps_camera::imaging::ImagingError;
 use vgps_core::localizer::{
     Frame, GnssPosition, LandmarkMap, Localizer, LocalizerFix, LocalizerOptions,
 };
+use vgps_core::matcher::{DEFAULT_VISIBILITY_RANGE_M, MatchOptions};
 use vgps_import::mcap_import::{FrameStream, RecordingImages};
 use vgps_replay::drive::gnss::gnss_at;
 use vgps_replay::drive::{Drive, FrameStatus};
@@ -81,6 +82,11 @@ pub struct ReplayArgs {
     /// 5° (a vehicle rig).
     #[arg(long, value_name = "DEG", value_parser = super::args::parse_non_negative)]
     pub up_tolerance_deg: Option<f64>,
+    /// Landmarks farther than this are not expected to be seen (metres; the matcher's
+    /// visibility range, default 80 m). Building corners are found by day to 150 m
+    /// (docs/dev/journal.md, fifteenth session).
+    #[arg(long, value_name = "M", value_parser = super::args::parse_positive)]
+    pub visibility_range_m: Option<f64>,
     /// Detect landmarks in the images even when the drive has `detections.csv`.
     #[arg(long)]
     pub from_images: bool,
@@ -184,6 +190,12 @@ pub fn run(
             .up_tolerance_rad
             .or(rig.level_within_rad())
             .or(LocalizerOptions::default().level_tolerance_rad),
+        matcher: MatchOptions {
+            visibility_range_m: settings
+                .visibility_range_m
+                .unwrap_or(DEFAULT_VISIBILITY_RANGE_M),
+            ..LocalizerOptions::default().matcher
+        },
         ..LocalizerOptions::default()
     };
     let mut localizer = Localizer::new(Arc::clone(&rig), Arc::clone(&map), options)

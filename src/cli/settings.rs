@@ -113,6 +113,8 @@ pub struct ReplaySettings {
     /// `--up-tolerance-deg`, radians: the rig's +z is within it of up (overrides the
     /// calibration's `level_within_deg`).
     pub up_tolerance_rad: Option<f64>,
+    /// `--visibility-range-m`: the matcher's visibility range (default: by detector).
+    pub visibility_range_m: Option<f64>,
     /// Detect lamps in the images even when the drive has a detections file.
     pub from_images: bool,
     /// The image size of cameras whose calibration has none (`--image-size WxH`).
@@ -314,6 +316,7 @@ impl TryFrom<ReplayArgs> for ReplaySettings {
             gnss_prior: !a.no_gnss_prior,
             imu: !a.no_imu,
             up_tolerance_rad: a.up_tolerance_deg.map(f64::to_radians),
+            visibility_range_m: a.visibility_range_m,
             from_images: a.from_images,
             image_size: a.image_size,
             detector: a.detector.into(),

@@ -57,7 +57,7 @@ pub use detect::{
 pub use detection::PixelDetection;
 pub use formats::{ImageFormat, decode_image, decode_image_named, read_image};
 pub use street::{LampClass, StreetDetection, StreetDetections, StreetLampDetector};
-pub use vertex::{VertexConfig, VertexDetection, VertexDetector};
+pub use vertex::{Rejection, VertexCandidate, VertexConfig, VertexDetection, VertexDetector};
 
 use std::path::PathBuf;
 use thiserror::Error;

@@ -17,7 +17,10 @@
 //!    is the edge's sub-pixel centre line. With a camera model the pixels are first mapped to
 //!    the gnomonic plane tangent at the candidate's bearing (a *locally rectified patch*,
 //!    [`CameraModel::try_bearing`]), where the image of a straight 3-D edge is straight, and
-//!    the corner is mapped back with [`CameraModel::try_pixel`].
+//!    the corner is mapped back with [`CameraModel::try_pixel`]. The pixels' gradients are
+//!    turned into the plane too (by `J⁻ᵀ`, `J` the map's derivative at the candidate), so
+//!    that orientations and lines are compared in one frame (a fisheye turns directions by
+//!    up to 26° off its axis).
 //! 4. **Corner**: the least-squares intersection of the lines; lines and corner are refitted
 //!    [`REFINEMENT_PASSES`] times. A corner that moves more than
 //!    [`VertexConfig::max_shift_px`] from its candidate, or whose lines are too close to
@@ -103,6 +106,40 @@ pub struct VertexDetection {
     pub edges: u8,
     /// RMS distance of the fitted lines from the corner (pixels).
     pub residual_px: f64,
+}
+
+/// Why a candidate gave no corner ([`VertexDetector::explain`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Rejection {
+    /// Beyond the [`VertexConfig::max_candidates`] strongest.
+    NotRanked,
+    /// The camera model gives no bearing or pixel there.
+    NoBearing,
+    /// Fewer than two orientation peaks in the patch.
+    OneDirection,
+    /// Fewer than two edges with [`VertexConfig::min_edge_pixels`] pixels.
+    TooFewEdgePixels,
+    /// The edges are closer to parallel than [`VertexConfig::min_angle_deg`].
+    Parallel,
+    /// The corner is farther than [`VertexConfig::max_shift_px`] from its candidate.
+    Shift,
+    /// Fewer than two edges run on to [`VertexConfig::min_edge_extent_px`].
+    ShortEdges,
+}
+
+/// A candidate of [`VertexDetector::explain`] and what became of it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VertexCandidate {
+    /// Column of the candidate (a response maximum).
+    pub u: usize,
+    /// Row.
+    pub v: usize,
+    /// Its Shi–Tomasi response.
+    pub response: f32,
+    /// Its rank by response (0: the strongest).
+    pub rank: usize,
+    /// The corner, or why none.
+    pub outcome: Result<VertexDetection, Rejection>,
 }
 
 /// The vertex detector (see the module documentation).
@@ -219,6 +256,31 @@ impl<'a> Rectifier<'a> {
         Some(out)
     }
 
+    /// The map of image gradients to plane gradients at the patch's centre: `J⁻ᵀ`, with `J`
+    /// the derivative of [`Rectifier::to_plane`] by the pixel. A gradient is a covector, so
+    /// this is what turns an image gradient's orientation into the orientation of the same
+    /// edge in the plane (where the lines are fitted). Off the axis of a fisheye the two
+    /// differ by up to 26° (the Ladybug2-like Kannala–Brandt lenses of the simulator), more
+    /// than the orientation tolerance.
+    fn gradient_map(&self) -> Option<Matrix2<f64>> {
+        let jacobian = match &self.nodes {
+            Some(n) => Matrix2::from_columns(&[
+                (n[1][2] - n[1][0]) / (2.0 * self.step),
+                (n[2][1] - n[0][1]) / (2.0 * self.step),
+            ]),
+            None => {
+                let at =
+                    |du: f64, dv: f64| self.to_plane_exact(&(self.centre + Vector2::new(du, dv)));
+                Matrix2::from_columns(&[
+                    (at(1.0, 0.0)? - at(-1.0, 0.0)?) * 0.5,
+                    (at(0.0, 1.0)? - at(0.0, -1.0)?) * 0.5,
+                ])
+            }
+        };
+        let map = jacobian.try_inverse()?.transpose();
+        map.iter().all(|x| x.is_finite()).then_some(map)
+    }
+
     fn to_plane_exact(&self, p: &Pixel) -> Option<Vector2<f64>> {
         let b = self.camera.try_bearing(p)?;
         let z = b.dot(&self.b0);
@@ -254,7 +316,39 @@ impl VertexDetector {
             return Vec::new();
         }
         let (gx, gy) = sobel(image.as_raw(), w, h);
-        let response = shi_tomasi(&gx, &gy, w, h);
+        let mut candidates = self.candidates(&gx, &gy, w, h, mask);
+        candidates.sort_by(|a, b| b.0.total_cmp(&a.0));
+        candidates.truncate(c.max_candidates);
+        let mut found: Vec<VertexDetection> = candidates
+            .iter()
+            .filter_map(|&(_, u, v)| self.refine(&gx, &gy, w, u, v, camera).ok())
+            .collect();
+        found.sort_by(|a, b| b.strength.total_cmp(&a.strength));
+        let mut kept: Vec<VertexDetection> = Vec::with_capacity(found.len());
+        for d in found {
+            if kept
+                .iter()
+                .all(|k| (k.u - d.u).hypot(k.v - d.v) >= DUPLICATE_PX)
+            {
+                kept.push(d);
+            }
+        }
+        kept
+    }
+
+    /// Every candidate of the image (local maxima of the Shi–Tomasi response above
+    /// [`VertexConfig::min_response`], unmasked), as `(response, u, v)`, unsorted.
+    fn candidates(
+        &self,
+        gx: &[f32],
+        gy: &[f32],
+        w: usize,
+        h: usize,
+        mask: Option<&Mask>,
+    ) -> Vec<(f32, usize, usize)> {
+        let c = &self.config;
+        let margin = c.patch_radius + 2;
+        let response = shi_tomasi(gx, gy, w, h);
         let mut candidates = Vec::new();
         let r = c.nms_radius as isize;
         for v in margin..h - margin {
@@ -279,23 +373,42 @@ impl VertexDetector {
                 }
             }
         }
-        candidates.sort_by(|a, b| b.0.total_cmp(&a.0));
-        candidates.truncate(c.max_candidates);
-        let mut found: Vec<VertexDetection> = candidates
-            .iter()
-            .filter_map(|&(_, u, v)| self.refine(&gx, &gy, w, u, v, camera))
-            .collect();
-        found.sort_by(|a, b| b.strength.total_cmp(&a.strength));
-        let mut kept: Vec<VertexDetection> = Vec::with_capacity(found.len());
-        for d in found {
-            if kept
-                .iter()
-                .all(|k| (k.u - d.u).hypot(k.v - d.v) >= DUPLICATE_PX)
-            {
-                kept.push(d);
-            }
+        candidates
+    }
+
+    /// Every candidate of `image` in order of response, with what became of it: the corner
+    /// it gave, or why it gave none (candidates past [`VertexConfig::max_candidates`] are
+    /// not refined: [`Rejection::NotRanked`]; duplicates are not removed). For diagnosis:
+    /// [`VertexDetector::detect`] keeps these `Ok` corners, less the duplicates.
+    pub fn explain(
+        &self,
+        image: &GrayImage,
+        camera: Option<&Camera>,
+        mask: Option<&Mask>,
+    ) -> Vec<VertexCandidate> {
+        let c = &self.config;
+        let (w, h) = (image.width() as usize, image.height() as usize);
+        if w <= 2 * (c.patch_radius + 2) || h <= 2 * (c.patch_radius + 2) {
+            return Vec::new();
         }
-        kept
+        let (gx, gy) = sobel(image.as_raw(), w, h);
+        let mut candidates = self.candidates(&gx, &gy, w, h, mask);
+        candidates.sort_by(|a, b| b.0.total_cmp(&a.0));
+        candidates
+            .iter()
+            .enumerate()
+            .map(|(rank, &(response, u, v))| VertexCandidate {
+                u,
+                v,
+                response,
+                rank,
+                outcome: if rank < c.max_candidates {
+                    self.refine(&gx, &gy, w, u, v, camera)
+                } else {
+                    Err(Rejection::NotRanked)
+                },
+            })
+            .collect()
     }
 
     /// The corner near the candidate `(u, v)`, if two or three edges meet there.
@@ -307,16 +420,23 @@ impl VertexDetector {
         u: usize,
         v: usize,
         camera: Option<&Camera>,
-    ) -> Option<VertexDetection> {
+    ) -> Result<VertexDetection, Rejection> {
         let c = &self.config;
         let centre = Pixel::new(u as f64, v as f64);
         let rectifier = match camera {
-            Some(cam) => Some(Rectifier::new(cam, &centre, c.patch_radius as f64)?),
+            Some(cam) => Some(
+                Rectifier::new(cam, &centre, c.patch_radius as f64).ok_or(Rejection::NoBearing)?,
+            ),
             None => None,
         };
         let to_plane = |p: &Pixel| match &rectifier {
             Some(r) => r.to_plane(p),
             None => Some(*p),
+        };
+        // Image gradients → plane gradients (identity without a camera model).
+        let gradient_map = match &rectifier {
+            Some(r) => r.gradient_map().ok_or(Rejection::NoBearing)?,
+            None => Matrix2::identity(),
         };
         let pr = c.patch_radius as isize;
         let mut pixels = Vec::with_capacity((2 * c.patch_radius + 1).pow(2));
@@ -330,7 +450,11 @@ impl VertexDetector {
                 if !(g >= c.min_edge_gradient as f64) {
                     continue;
                 }
-                let orientation = y.atan2(x).rem_euclid(std::f64::consts::PI);
+                let in_plane = gradient_map * Vector2::new(x, y);
+                let orientation = in_plane
+                    .y
+                    .atan2(in_plane.x)
+                    .rem_euclid(std::f64::consts::PI);
                 let Some(pos) = to_plane(&Pixel::new(uu as f64, vv as f64)) else {
                     continue;
                 };
@@ -348,9 +472,9 @@ impl VertexDetector {
         }
         let directions = histogram_peaks(&histogram, c.min_angle_deg.to_radians());
         if directions.len() < 2 {
-            return None;
+            return Err(Rejection::OneDirection);
         }
-        let start = to_plane(&centre)?;
+        let start = to_plane(&centre).ok_or(Rejection::NoBearing)?;
         let tolerance = ORIENTATION_TOLERANCE_DEG.to_radians();
         // Initial lines: through the candidate, normal along each peak's gradient direction.
         let mut lines: Vec<Line> = directions
@@ -384,12 +508,12 @@ impl VertexDetector {
                 }
             }
             if refitted.len() < 2 {
-                return None;
+                return Err(Rejection::TooFewEdgePixels);
             }
             lines = refitted;
-            corner = intersect(&lines, c.min_angle_deg.to_radians())?;
+            corner = intersect(&lines, c.min_angle_deg.to_radians()).ok_or(Rejection::Parallel)?;
             if (corner - start).norm() > c.max_shift_px + BAND_PX {
-                return None;
+                return Err(Rejection::Shift);
             }
         }
         if c.min_edge_extent_px > 0.0 {
@@ -398,15 +522,15 @@ impl VertexDetector {
                 .filter(|l| self.edge_reaches(gx, gy, w, l, &corner, rectifier.as_ref()))
                 .count();
             if long < 2 {
-                return None;
+                return Err(Rejection::ShortEdges);
             }
         }
         let pixel = match &rectifier {
-            Some(r) => r.to_pixel(&corner)?,
+            Some(r) => r.to_pixel(&corner).ok_or(Rejection::NoBearing)?,
             None => corner,
         };
         if !((pixel - centre).norm() <= c.max_shift_px) {
-            return None;
+            return Err(Rejection::Shift);
         }
         let residual_px = (lines
             .iter()
@@ -418,7 +542,7 @@ impl VertexDetector {
             .iter()
             .map(|l| l.mean_gradient)
             .fold(f64::INFINITY, f64::min);
-        Some(VertexDetection {
+        Ok(VertexDetection {
             u: pixel.x,
             v: pixel.y,
             strength,
@@ -723,6 +847,61 @@ mod tests {
             let error = (best.u - cu).hypot(best.v - cv);
             assert!(error < tolerance, "case {k}: error {error} px, {best:?}");
             assert!(best.edges >= 2 && best.strength > 10.0);
+        }
+    }
+
+    /// A corner of two straight 3-D edges seen near a corner of a fisheye image (where the
+    /// lens turns directions by 20°), rendered through the camera: the edges' gradients
+    /// must be turned into the rectified plane before their orientations are compared with
+    /// the lines fitted there, or the corner is lost (issue #26: 0 of 87 day frames fixed).
+    #[test]
+    fn a_corner_off_the_axis_of_a_fisheye_is_found_through_the_camera() {
+        let camera = Camera::from(crate::synthetic::calibration_files::ladybug2_lens());
+        let (w, h) = camera.image_size();
+        for (k, (cu, cv, a1, a2)) in [
+            (90.3, 80.6, 0.35f64, 1.95f64),
+            (930.7, 690.2, -0.4, 1.1),
+            (95.2, 700.4, 2.6, 4.4),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let corner = Pixel::new(cu, cv);
+            let b0 = camera
+                .try_bearing(&corner)
+                .expect("a bearing at the corner");
+            let e2 = b0.cross(&Vector3::x()).normalize();
+            let e1 = e2.cross(&b0);
+            let n1 = Vector2::new(-a1.sin(), a1.cos());
+            let n2 = Vector2::new(a2.sin(), -a2.cos());
+            let image = GrayImage::from_fn(w, h, |u, v| {
+                if (u as f64 - cu).hypot(v as f64 - cv) > 70.0 {
+                    return image::Luma([60]);
+                }
+                let mut inside = 0;
+                for sy in 0..4 {
+                    for sx in 0..4 {
+                        let p = Pixel::new(
+                            u as f64 + (sx as f64 + 0.5) / 4.0 - 0.5,
+                            v as f64 + (sy as f64 + 0.5) / 4.0 - 0.5,
+                        );
+                        let Some(b) = camera.try_bearing(&p) else {
+                            continue;
+                        };
+                        let x = Vector2::new(b.dot(&e1), b.dot(&e2)) / b.dot(&b0);
+                        if n1.dot(&x) >= 0.0 && n2.dot(&x) >= 0.0 {
+                            inside += 1;
+                        }
+                    }
+                }
+                image::Luma([(60.0 + 130.0 * inside as f64 / 16.0).round() as u8])
+            });
+            let found = VertexDetector::default().detect(&image, Some(&camera), None);
+            let error = found
+                .iter()
+                .map(|d| (d.u - cu).hypot(d.v - cv))
+                .fold(f64::INFINITY, f64::min);
+            assert!(error < 0.2, "case {k}: nearest corner {error} px away");
         }
     }
 
