@@ -118,6 +118,23 @@ fn read_times(path: &Path, report: &mut ImportReport) -> Result<HashMap<String, 
         path: path.to_path_buf(),
         source,
     })?;
+    Ok(times_from_str(&text, path, report))
+}
+
+/// The times of a `times.csv` (`file,time_s`, an optional header; time in seconds) from its
+/// text: file name → time in nanoseconds. A bad row is skipped and counted in `report`, with
+/// a warning naming `path` and the line.
+///
+/// # Example
+/// ```
+/// use std::path::Path;
+/// use vgps_import::{drive_out::ImportReport, folders::times_from_str};
+/// let mut report = ImportReport::default();
+/// let times = times_from_str("file,time_s\na.jpg,12.5\nb.jpg,soon\n", Path::new("times.csv"), &mut report);
+/// assert_eq!(times["a.jpg"], 12_500_000_000);
+/// assert_eq!(report.skipped, 1);
+/// ```
+pub fn times_from_str(text: &str, path: &Path, report: &mut ImportReport) -> HashMap<String, i64> {
     let mut out = HashMap::new();
     for (n, line) in text.lines().enumerate() {
         let line = line.trim();
@@ -144,7 +161,7 @@ fn read_times(path: &Path, report: &mut ImportReport) -> Result<HashMap<String, 
             }
         }
     }
-    Ok(out)
+    out
 }
 
 /// The stamped images of the camera folders of `root`.

@@ -76,6 +76,25 @@ pub fn read_topic_map(path: &Path) -> Result<BTreeMap<String, usize>, ImportErro
         path: path.to_path_buf(),
         source,
     })?;
+    topic_map_from_str(&text, path)
+}
+
+/// [`read_topic_map`] on the text of the file `path` (named in errors).
+///
+/// # Errors
+/// As [`read_topic_map`], except reading.
+///
+/// # Example
+/// ```
+/// use std::path::Path;
+/// use vgps_import::mcap_import::topic_map_from_str;
+/// let map = topic_map_from_str("topic,camera\n/front/image,2\n", Path::new("t.csv"))?;
+/// assert_eq!(map["/front/image"], 2);
+/// let e = topic_map_from_str("/a,1\n/a,2\n", Path::new("t.csv")).unwrap_err();
+/// assert!(e.to_string().contains("t.csv:2: topic `/a` is mapped twice"));
+/// # Ok::<(), vgps_import::drive_out::ImportError>(())
+/// ```
+pub fn topic_map_from_str(text: &str, path: &Path) -> Result<BTreeMap<String, usize>, ImportError> {
     let mut map = BTreeMap::new();
     let mut header_seen = false;
     for (n, line) in text.lines().enumerate() {
@@ -308,7 +327,7 @@ impl State<'_> {
                         raw_layout(&img)?;
                         Ok((stamp, "png", Vec::new(), Some((img.width, img.height))))
                     } else {
-                        Ok((stamp, "png", raw_to_png(&img)?, None))
+                        Ok((stamp, "png", raw_image_to_png(&img)?, None))
                     }
                 }),
         };
@@ -442,8 +461,12 @@ fn compressed_extension(format: &str, data: &[u8]) -> Result<&'static str, Strin
 }
 
 /// A `sensor_msgs/Image` as PNG (`mono8`, `8UC1`, `mono16`, `16UC1`, `rgb8`, `bgr8`, `rgba8`,
-/// `bgra8`).
-fn raw_to_png(img: &ros_decode::RawImage<'_>) -> Result<Vec<u8>, String> {
+/// `bgra8`): what the import writes for a raw image.
+///
+/// # Errors
+/// The reason, for an unsupported encoding, an empty or too large image
+/// (more than [`MAX_RAW_PIXELS`]), a `step` shorter than a row or too few data bytes.
+pub fn raw_image_to_png(img: &ros_decode::RawImage<'_>) -> Result<Vec<u8>, String> {
     let (color, channels, bytes, swap_rb) = raw_layout(img)?;
     let (w, h) = (u64::from(img.width), u64::from(img.height));
     let row = w * channels * bytes;
@@ -800,7 +823,7 @@ fn image_bytes(m: &McapMessage<'_>) -> Result<Vec<u8>, String> {
             .map_err(|e| e.to_string()),
         Some(Kind::Raw) => ros_decode::raw_image(m.data)
             .map_err(|e| e.to_string())
-            .and_then(|img| raw_to_png(&img)),
+            .and_then(|img| raw_image_to_png(&img)),
         _ => Err(format!("record {}: not an image message", m.record)),
     }
 }
@@ -833,13 +856,13 @@ mod tests {
             step: 8,
             data: &data,
         };
-        let png = raw_to_png(&img).unwrap();
+        let png = raw_image_to_png(&img).unwrap();
         let decoded = image::load_from_memory_with_format(&png, image::ImageFormat::Png).unwrap();
         assert_eq!(&decoded.to_rgb8().as_raw()[..6], &[3, 2, 1, 6, 5, 4]);
         let short = ros_decode::RawImage {
             data: &data[..5],
             ..img
         };
-        assert!(raw_to_png(&short).unwrap_err().contains("too few"));
+        assert!(raw_image_to_png(&short).unwrap_err().contains("too few"));
     }
 }

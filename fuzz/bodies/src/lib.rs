@@ -884,6 +884,56 @@ pub fn mcap_read(data: &[u8]) {
     }
 }
 
+/// Target `import_tables`: the small text files of the imports — the MCAP topic mapping
+/// (`topic,camera`), an image folder's `times.csv`, the times in image file names, and
+/// NCLT's ground truth (`vgps_import`): never a panic; what is read is within bounds.
+pub fn import_tables(data: &[u8]) {
+    use vgps_import::{drive_out::ImportReport, folders, mcap_import, nclt};
+    let text = text(data);
+    let path = Path::new(FUZZ_PATH);
+    let lines = text.lines().count();
+    if let Ok(map) = mcap_import::topic_map_from_str(&text, path) {
+        assert!(map.len() <= lines);
+        assert!(
+            map.values()
+                .all(|&c| c < vgps_replay::drive::MAX_IMAGE_COLUMNS)
+        );
+    }
+    let mut report = ImportReport::default();
+    let times = folders::times_from_str(&text, path, &mut report);
+    assert!(times.len() as u64 + report.skipped <= lines as u64);
+    for line in text.lines() {
+        let _ = folders::time_ns_of_name(line);
+    }
+    let mut report = ImportReport::default();
+    let truth = nclt::read_ground_truth(path, &text, &mut report);
+    assert!(truth.len() <= lines);
+    assert!(truth.windows(2).all(|w| w[0].utime < w[1].utime));
+    for row in &truth {
+        assert!(row.ned_m.iter().chain(&row.rpy).all(|x| x.is_finite()));
+    }
+}
+
+/// Target `raw_image`: a `sensor_msgs/Image` CDR decoded and written as PNG as the MCAP
+/// import does ([`vgps_import::mcap_import::raw_image_to_png`]): never a panic, and a PNG
+/// written decodes back to the image's size.
+pub fn raw_image(data: &[u8]) {
+    let Ok(img) = vgps_import::ros_decode::raw_image(data) else {
+        return;
+    };
+    let Ok(png) = vgps_import::mcap_import::raw_image_to_png(&img) else {
+        return;
+    };
+    // The input holds every row, so the image has fewer pixels than the input has bytes.
+    let limits = DecodeLimits {
+        max_width: u32::MAX,
+        max_height: u32::MAX,
+        max_bytes: 64 << 20,
+    };
+    let back = decode_png(&png, &limits).expect("the PNG written decodes");
+    assert_eq!((back.width(), back.height()), (img.width, img.height));
+}
+
 /// A target: its name and its body.
 pub type Target = (&'static str, fn(&[u8]));
 
@@ -912,6 +962,8 @@ pub const TARGETS: &[Target] = &[
     ("truth_formats", truth_formats),
     ("ros_cdr", ros_cdr),
     ("mcap_read", mcap_read),
+    ("import_tables", import_tables),
+    ("raw_image", raw_image),
     ("png_decode", png_decode),
     ("jpeg_decode", jpeg_decode),
     ("tiff_decode", tiff_decode),
