@@ -238,3 +238,23 @@ fn nmea_two_sentences_on_one_line_are_both_used() {
     );
     vgps_fuzz_bodies::nmea(line.as_bytes());
 }
+
+/// `import_tables` crash-bd1ae883 (2026-11-27, 19 executions into the target's first run): a
+/// file name with a multi-byte character just before its time (`é1352589620.jpg`) made
+/// `time_ns_of_name` slice inside the character (`rfind` + 1); `camera_of_topic` had the
+/// same slice (`/caméra2`). Both now take the run's start from `trim_end_matches`.
+#[test]
+fn names_with_multibyte_characters_before_the_number() {
+    use vgps_import::{folders::time_ns_of_name, mcap_import::camera_of_topic};
+    assert_eq!(
+        time_ns_of_name("é1352589620.jpg"),
+        Some(1_352_589_620_000_000_000)
+    );
+    assert_eq!(
+        time_ns_of_name("\u{fffd}1.5\u{fffd}.png"),
+        Some(1_500_000_000)
+    );
+    assert_eq!(camera_of_topic("/caméra2"), Some(2));
+    assert_eq!(camera_of_topic("€7"), Some(7));
+    vgps_fuzz_bodies::import_tables("a\u{fffd}12.txt\n".as_bytes());
+}

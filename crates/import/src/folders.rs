@@ -32,13 +32,16 @@ pub const IMAGE_EXTENSIONS: [&str; 6] = ["png", "jpg", "jpeg", "tif", "tiff", "b
 /// assert_eq!(time_ns_of_name("1326030975726043.tiff"), Some(1_326_030_975_726_043_000));
 /// assert_eq!(time_ns_of_name("cam0_1352589620.125.jpg"), Some(1_352_589_620_125_000_000));
 /// assert_eq!(time_ns_of_name("frame.png"), None);
+/// assert_eq!(time_ns_of_name("prise_à_1352589620.5.jpg"), Some(1_352_589_620_500_000_000));
 /// ```
 pub fn time_ns_of_name(name: &str) -> Option<i64> {
     let stem = name.rsplit_once('.').map_or(name, |(s, _)| s);
     let end = stem.rfind(|c: char| c.is_ascii_digit())? + 1;
+    // The start of the run of digits and dots ending at `end` (a byte index on a character
+    // boundary whatever precedes the run).
     let start = stem[..end]
-        .rfind(|c: char| !(c.is_ascii_digit() || c == '.'))
-        .map_or(0, |i| i + 1);
+        .trim_end_matches(|c: char| c.is_ascii_digit() || c == '.')
+        .len();
     let number = stem[start..end].trim_start_matches('.');
     if let Some((int, frac)) = number.split_once('.') {
         if frac.contains('.') || int.is_empty() || frac.len() > 9 {

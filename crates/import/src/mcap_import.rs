@@ -138,12 +138,13 @@ pub fn topic_map_from_str(text: &str, path: &Path) -> Result<BTreeMap<String, us
 /// use vgps_import::mcap_import::camera_of_topic;
 /// assert_eq!(camera_of_topic("/ladybug/cam3/image/compressed"), Some(3));
 /// assert_eq!(camera_of_topic("/front/image_raw"), None);
+/// assert_eq!(camera_of_topic("/caméra2"), Some(2));
 /// ```
 pub fn camera_of_topic(topic: &str) -> Option<usize> {
     let end = topic.rfind(|c: char| c.is_ascii_digit())? + 1;
     let start = topic[..end]
-        .rfind(|c: char| !c.is_ascii_digit())
-        .map_or(0, |i| i + 1);
+        .trim_end_matches(|c: char| c.is_ascii_digit())
+        .len();
     topic[start..end].parse().ok()
 }
 
