@@ -26,6 +26,12 @@
 //!    [`VertexConfig::max_shift_px`] from its candidate, or whose lines are too close to
 //!    parallel, is dropped; of two corners closer than [`DUPLICATE_PX`], the stronger is kept.
 //!
+//! 5. **Open side**: a building's corner against the sky has sky on its open side (the
+//!    widest sector between its edges, the outside of the silhouette), a window's corner on
+//!    a facade has the facade there. A corner whose open side, sampled away from the edges,
+//!    is darker on average than [`VertexConfig::min_open_side_dn`] is dropped
+//!    ([`Rejection::DarkOpenSide`]).
+//!
 //! The strength is the weakest edge's mean gradient (DN per pixel).
 
 use super::detect::Mask;
@@ -74,6 +80,14 @@ pub struct VertexConfig {
     /// outlines run on, the corners of windows, cars and other small things end sooner.
     /// `0`: no check.
     pub min_edge_extent_px: f64,
+    /// Smallest mean brightness (DN) of a corner's open side: the widest angular sector
+    /// between its edges (for a corner of a building's silhouette, the outside: sky), sampled
+    /// from [`OPEN_SIDE_MIN_RADIUS_PX`] to `patch_radius + 4` pixels from the corner and at
+    /// least [`OPEN_SIDE_EDGE_CLEARANCE_PX`] from the edges. The corners of windows on a
+    /// facade have the facade there, roof corners the sky. The default, 150 DN, lies between
+    /// the simulator's day facades (110–130 DN) and its sky (170–200 DN); it assumes an
+    /// exposure in which the sky is bright. `0`: no check.
+    pub min_open_side_dn: f64,
 }
 
 impl Default for VertexConfig {
@@ -89,6 +103,7 @@ impl Default for VertexConfig {
             min_angle_deg: 25.0,
             min_edge_pixels: 6,
             min_edge_extent_px: 30.0,
+            min_open_side_dn: 150.0,
         }
     }
 }
@@ -125,6 +140,10 @@ pub enum Rejection {
     Shift,
     /// Fewer than two edges run on to [`VertexConfig::min_edge_extent_px`].
     ShortEdges,
+    /// The open side (the widest sector between the edges) is darker than
+    /// [`VertexConfig::min_open_side_dn`]: e.g. a window's corner, with facade around it
+    /// rather than sky.
+    DarkOpenSide,
 }
 
 /// A candidate of [`VertexDetector::explain`] and what became of it.
@@ -321,7 +340,7 @@ impl VertexDetector {
         candidates.truncate(c.max_candidates);
         let mut found: Vec<VertexDetection> = candidates
             .iter()
-            .filter_map(|&(_, u, v)| self.refine(&gx, &gy, w, u, v, camera).ok())
+            .filter_map(|&(_, u, v)| self.refine(image, &gx, &gy, u, v, camera).ok())
             .collect();
         found.sort_by(|a, b| b.strength.total_cmp(&a.strength));
         let mut kept: Vec<VertexDetection> = Vec::with_capacity(found.len());
@@ -403,7 +422,7 @@ impl VertexDetector {
                 response,
                 rank,
                 outcome: if rank < c.max_candidates {
-                    self.refine(&gx, &gy, w, u, v, camera)
+                    self.refine(image, &gx, &gy, u, v, camera)
                 } else {
                     Err(Rejection::NotRanked)
                 },
@@ -414,14 +433,15 @@ impl VertexDetector {
     /// The corner near the candidate `(u, v)`, if two or three edges meet there.
     fn refine(
         &self,
+        image: &GrayImage,
         gx: &[f32],
         gy: &[f32],
-        w: usize,
         u: usize,
         v: usize,
         camera: Option<&Camera>,
     ) -> Result<VertexDetection, Rejection> {
         let c = &self.config;
+        let w = image.width() as usize;
         let centre = Pixel::new(u as f64, v as f64);
         let rectifier = match camera {
             Some(cam) => Some(
@@ -532,6 +552,14 @@ impl VertexDetector {
         if !((pixel - centre).norm() <= c.max_shift_px) {
             return Err(Rejection::Shift);
         }
+        if c.min_open_side_dn > 0.0 {
+            let open = self
+                .open_side_brightness(image, &lines, &corner, &pixel, rectifier.as_ref())
+                .ok_or(Rejection::NoBearing)?;
+            if !(open >= c.min_open_side_dn) {
+                return Err(Rejection::DarkOpenSide);
+            }
+        }
         let residual_px = (lines
             .iter()
             .map(|l| (l.n.dot(&corner) - l.d).powi(2))
@@ -613,6 +641,82 @@ impl VertexDetector {
         total > 0 && hits as f64 >= EXTENT_SHARE * total as f64
     }
 }
+
+impl VertexDetector {
+    /// The mean brightness (DN) of the open side of the corner at `corner` (plane) and
+    /// `pixel` (image): the widest angular sector between the arms of `lines`, in the
+    /// image, sampled at 7 angles across its middle half and at radii from
+    /// [`OPEN_SIDE_MIN_RADIUS_PX`] to `patch_radius + 4` pixels, leaving out samples closer
+    /// than [`OPEN_SIDE_EDGE_CLEARANCE_PX`] to an arm or outside the image. `None` when an
+    /// arm has no pixel or no sample is left.
+    fn open_side_brightness(
+        &self,
+        image: &GrayImage,
+        lines: &[Line],
+        corner: &Vector2<f64>,
+        pixel: &Pixel,
+        rectifier: Option<&Rectifier>,
+    ) -> Option<f64> {
+        let reach = self.config.patch_radius as f64;
+        // Each arm's direction in the image: from the corner to a point `reach` along it.
+        let mut angles = Vec::with_capacity(lines.len());
+        for line in lines {
+            let mut t = Vector2::new(-line.n.y, line.n.x);
+            if t.dot(&(line.mean - corner)) < 0.0 {
+                t = -t;
+            }
+            let end = corner + t * reach;
+            let end = match rectifier {
+                Some(r) => r.to_pixel(&end)?,
+                None => end,
+            };
+            let d = end - pixel;
+            angles.push(d.y.atan2(d.x).rem_euclid(std::f64::consts::TAU));
+        }
+        angles.sort_by(f64::total_cmp);
+        // The widest gap between consecutive arms (circularly): the open side.
+        let (mut start, mut gap) = (0.0, -1.0);
+        for (k, &a) in angles.iter().enumerate() {
+            let next = angles
+                .get(k + 1)
+                .copied()
+                .unwrap_or(angles[0] + std::f64::consts::TAU);
+            if next - a > gap {
+                (start, gap) = (a, next - a);
+            }
+        }
+        if !(gap > 0.0) {
+            return None;
+        }
+        let (w, h) = (image.width() as f64, image.height() as f64);
+        let (mut sum, mut n) = (0.0, 0usize);
+        for i in 0..7 {
+            let f = 0.25 + 0.5 * i as f64 / 6.0;
+            let a = start + gap * f;
+            // Angular distance to the nearer arm (a sine past 90° is taken as 1).
+            let off = (gap * f.min(1.0 - f)).min(std::f64::consts::FRAC_PI_2);
+            let dir = Vector2::new(a.cos(), a.sin());
+            let mut r = OPEN_SIDE_MIN_RADIUS_PX;
+            while r <= reach + 4.0 {
+                if r * off.sin() >= OPEN_SIDE_EDGE_CLEARANCE_PX {
+                    let p = pixel + dir * r;
+                    let (x, y) = (p.x.round(), p.y.round());
+                    if x >= 0.0 && y >= 0.0 && x < w && y < h {
+                        sum += f64::from(image.get_pixel(x as u32, y as u32).0[0]);
+                        n += 1;
+                    }
+                }
+                r += 1.0;
+            }
+        }
+        (n > 0).then(|| sum / n as f64)
+    }
+}
+
+/// Nearest sample of a corner's open side (pixels from the corner).
+pub const OPEN_SIDE_MIN_RADIUS_PX: f64 = 4.0;
+/// Samples of a corner's open side keep this distance from its edges (pixels).
+pub const OPEN_SIDE_EDGE_CLEARANCE_PX: f64 = 2.0;
 
 /// Share of the steps of an edge's extension that must show the edge.
 pub const EXTENT_SHARE: f64 = 0.8;
@@ -835,7 +939,12 @@ mod tests {
         .enumerate()
         {
             let image = wedge(Vector2::new(cu, cv), a1, a2, 60.0, 190.0);
-            let found = VertexDetector::default().detect(&image, None, None);
+            // A bright wedge on a dark ground: its open side is dark, so that check is off.
+            let found = VertexDetector::new(VertexConfig {
+                min_open_side_dn: 0.0,
+                ..VertexConfig::default()
+            })
+            .detect(&image, None, None);
             let best = found
                 .iter()
                 .min_by(|a, b| {
@@ -896,7 +1005,12 @@ mod tests {
                 }
                 image::Luma([(60.0 + 130.0 * inside as f64 / 16.0).round() as u8])
             });
-            let found = VertexDetector::default().detect(&image, Some(&camera), None);
+            // A bright wedge on a dark ground: its open side is dark, so that check is off.
+            let found = VertexDetector::new(VertexConfig {
+                min_open_side_dn: 0.0,
+                ..VertexConfig::default()
+            })
+            .detect(&image, Some(&camera), None);
             let error = found
                 .iter()
                 .map(|d| (d.u - cu).hypot(d.v - cv))
@@ -931,6 +1045,73 @@ mod tests {
             }
         }
         assert!(worst < 0.01, "interpolation error {worst} px");
+    }
+
+    /// An anti-aliased rectangle `[u0, u1) × [v0, v1)` at `inside` DN on `outside` DN
+    /// (128 × 96 pixels, 8 × 8 sub-samples per pixel).
+    fn rectangle(u0: f64, v0: f64, u1: f64, v1: f64, outside: f64, inside: f64) -> GrayImage {
+        GrayImage::from_fn(128, 96, |u, v| {
+            let mut n = 0;
+            for sy in 0..8 {
+                for sx in 0..8 {
+                    let x = u as f64 + (sx as f64 + 0.5) / 8.0 - 0.5;
+                    let y = v as f64 + (sy as f64 + 0.5) / 8.0 - 0.5;
+                    if x >= u0 && x < u1 && y >= v0 && y < v1 {
+                        n += 1;
+                    }
+                }
+            }
+            image::Luma([(outside + (inside - outside) * n as f64 / 64.0).round() as u8])
+        })
+    }
+
+    /// Issue #26: the corners of a dark window (48 DN, 50 × 40 px: its edges pass the
+    /// extent check) on a facade (118 DN, as in the simulator's day renders) are dropped as
+    /// [`Rejection::DarkOpenSide`]; a building's roof corner (60 DN) against the sky
+    /// (190 DN) is kept, within 0.2 px. Without the check the window's four corners
+    /// are found, so it is the check that drops them.
+    #[test]
+    fn a_window_on_a_facade_is_dropped_and_a_roof_corner_against_the_sky_kept() {
+        let near = |found: &[VertexDetection], (cu, cv): (f64, f64)| {
+            found
+                .iter()
+                .map(|d| (d.u - cu).hypot(d.v - cv))
+                .fold(f64::INFINITY, f64::min)
+        };
+        let roof = rectangle(40.3, 40.6, 1e3, 1e3, 190.0, 60.0);
+        let found = VertexDetector::default().detect(&roof, None, None);
+        let error = near(&found, (40.3, 40.6));
+        assert!(error < 0.2, "roof corner: nearest {error} px, {found:?}");
+
+        let window = rectangle(40.3, 30.6, 90.3, 70.6, 118.0, 48.0);
+        let corners = [(40.3, 30.6), (90.3, 30.6), (40.3, 70.6), (90.3, 70.6)];
+        let unchecked = VertexDetector::new(VertexConfig {
+            min_open_side_dn: 0.0,
+            ..VertexConfig::default()
+        });
+        let all = unchecked.detect(&window, None, None);
+        for corner in corners {
+            let error = near(&all, corner);
+            assert!(error < 0.2, "unchecked, {corner:?}: nearest {error} px");
+        }
+        let detector = VertexDetector::default();
+        let found = detector.detect(&window, None, None);
+        for corner in corners {
+            let error = near(&found, corner);
+            assert!(error > 3.0, "window corner {corner:?} kept: {found:?}");
+        }
+        let explained = detector.explain(&window, None, None);
+        for (cu, cv) in corners {
+            let nearest = explained
+                .iter()
+                .min_by(|a, b| {
+                    (a.u as f64 - cu)
+                        .hypot(a.v as f64 - cv)
+                        .total_cmp(&(b.u as f64 - cu).hypot(b.v as f64 - cv))
+                })
+                .map(|c| c.outcome);
+            assert_eq!(nearest, Some(Err(Rejection::DarkOpenSide)), "{cu}, {cv}");
+        }
     }
 
     #[test]
