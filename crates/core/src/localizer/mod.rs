@@ -19,6 +19,10 @@
 //!    [`INNOVATION_GATE_SIGMAS`] from the prediction, or resting on fewer than three surveyed
 //!    landmarks and fewer than [`MIN_SURROGATE_FIX_ASSOCIATIONS`] associations (or
 //!    [`MIN_UNAMBIGUOUS_SURROGATE_FIX_ASSOCIATIONS`] unambiguous ones), is not a fix.
+//!    Landmarks are counted as distinct points (a surrogate on a surveyed landmark is the
+//!    same point), at least [`MIN_TRACKED_CORRESPONDENCES`] of them; associations the
+//!    prediction did not decide (another landmark in an associated observation's gate, as
+//!    after a gap) need [`MIN_UNAMBIGUOUS_SURROGATE_FIX_ASSOCIATIONS`] distinct points.
 //! 2. **Re-acquisition.** Without a usable prediction (start, gap, tracking failure), the
 //!    matcher ([`crate::matcher::match_detections`]) identifies the landmarks around a prior:
 //!    the prediction (its radius growing with the gap), else the satellite GPS position of
@@ -599,9 +603,7 @@ impl Localizer {
                 &candidates,
                 MIN_TRACKED_CORRESPONDENCES,
             )
-            .filter(|t| t.mean_chi2 <= MAX_MEAN_CHI2)
-            .filter(|t| redundant_enough(t, &candidates, &observations))
-            .filter(|t| consistent_with_prediction(&pose, &guess, t, &candidates, &observations))
+            .filter(|t| tracked_fix_acceptable(&pose, &guess, t, &candidates, &observations))
             .map(|t| (t, candidates, FixSource::Tracking));
         }
         if tracked.is_none() {
@@ -1021,6 +1023,23 @@ impl Localizer {
     }
 }
 
+/// The acceptance of a fix tracked from the motion model's prediction `predicted` (position
+/// σ `guess`): its mean χ² ([`MAX_MEAN_CHI2`]), its redundancy ([`redundant_enough`]), the
+/// prediction deciding its associations or enough of them ([`decided_by_prediction`]), and
+/// its distance from the prediction ([`consistent_with_prediction`]).
+fn tracked_fix_acceptable(
+    predicted: &Pose,
+    guess: &GuessUncertainty,
+    t: &track::TrackResult,
+    candidates: &[Candidate],
+    observations: &[ObsRay],
+) -> bool {
+    t.mean_chi2 <= MAX_MEAN_CHI2
+        && redundant_enough(t, candidates, observations)
+        && decided_by_prediction(predicted, guess, t, candidates, observations)
+        && consistent_with_prediction(predicted, guess, t, candidates, observations)
+}
+
 /// True when the tracked pose `t` is within [`INNOVATION_GATE_SIGMAS`] of the prediction
 /// `predicted` (position σ `guess.position_m`), given the fix's position covariance with the
 /// error it shares with surrogates (see [`add_common_mode`]).
@@ -1037,25 +1056,51 @@ fn consistent_with_prediction(
     innovation <= INNOVATION_GATE_SIGMAS * (guess.position_m * guess.position_m + fix2).sqrt()
 }
 
+/// True when the tracked fix `t` rests on at least
+/// [`MIN_UNAMBIGUOUS_SURROGATE_FIX_ASSOCIATIONS`] distinct points, or when the prediction
+/// `predicted` (uncertainty `guess`) decided each of its associations: no associated
+/// observation had a landmark at another point within its association gate at the prediction
+/// (see [`track::chosen_among_several`]). Associations that tracking chose among several need
+/// 4 degrees of freedom for the χ² test, not the 2 of a minimal-plus-one set.
+///
+/// After a gap of 0.8–1 s the prediction's attitude σ is 0.3–0.5 rad and its gate takes in
+/// every landmark in view; a constant turn rate extrapolated over the end of a turn put the
+/// prediction 30–40° off in heading. Tracking then chose 4 associations that fit a wrong pose
+/// (3–4 m and 26–48° off) with a mean χ² of 0.05–1.3 and a σ of 4 cm, which neither the χ²
+/// test (2 degrees of freedom) nor the innovation gate (the wrong pose agreed with the wrong
+/// prediction) could notice. Such a frame goes to the matcher instead, whose a-contrario test
+/// weighs the number of poses it tried.
+fn decided_by_prediction(
+    predicted: &Pose,
+    guess: &GuessUncertainty,
+    t: &track::TrackResult,
+    candidates: &[Candidate],
+    observations: &[ObsRay],
+) -> bool {
+    let (_, distinct) = track::distinct_associated_points(candidates, &t.assignment);
+    distinct >= MIN_UNAMBIGUOUS_SURROGATE_FIX_ASSOCIATIONS
+        || !track::chosen_among_several(predicted, guess, observations, candidates, &t.assignment)
+}
+
 /// True when `t` uses at least [`crate::fix::MIN_OBSERVATIONS`] surveyed landmarks, or at
 /// least [`MIN_SURROGATE_FIX_ASSOCIATIONS`] associations in all, or at least
 /// [`MIN_UNAMBIGUOUS_SURROGATE_FIX_ASSOCIATIONS`] associations that are unambiguous at the
 /// fix (see [`associations_unambiguous`]).
+///
+/// Landmarks are counted as distinct points ([`track::distinct_associated_points`]): a
+/// surrogate on a surveyed landmark (or on another surrogate) associated with a second
+/// sighting of it (another camera) adds the same bearing twice, no redundancy. At least
+/// [`MIN_TRACKED_CORRESPONDENCES`] distinct points are needed in every case: with three, the
+/// pose fits any three associations exactly (a 3 m fix with a 4 cm σ, issue #25 helper
+/// int25).
 fn redundant_enough(
     t: &track::TrackResult,
     candidates: &[Candidate],
     observations: &[ObsRay],
 ) -> bool {
-    let mut surveyed = 0;
-    let mut all = 0;
-    for &ci in t.assignment.iter().flatten() {
-        all += 1;
-        if matches!(
-            candidates.get(ci).map(|c| c.source),
-            Some(CandidateSource::Surveyed(_))
-        ) {
-            surveyed += 1;
-        }
+    let (surveyed, all) = track::distinct_associated_points(candidates, &t.assignment);
+    if all < MIN_TRACKED_CORRESPONDENCES {
+        return false;
     }
     surveyed >= crate::fix::MIN_OBSERVATIONS
         || all >= MIN_SURROGATE_FIX_ASSOCIATIONS
@@ -1166,5 +1211,183 @@ fn common_mode(
         common * (f * f / n_common)
     } else {
         nalgebra::Matrix3::zeros()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SIGMA_RAD: f64 = 9e-4;
+
+    fn surveyed(k: usize, position: Vector3<f64>) -> Candidate {
+        Candidate {
+            position,
+            sigma_m: 0.02,
+            class: None,
+            source: CandidateSource::Surveyed(k),
+            common_covariance: None,
+        }
+    }
+
+    /// An exact observation of `target` from a camera at `origin` of a rig at the world
+    /// origin (identity attitude).
+    fn seen(origin: Vector3<f64>, target: &Vector3<f64>) -> ObsRay {
+        ObsRay {
+            ray: Ray {
+                origin,
+                direction: (target - origin).normalize(),
+            },
+            sigma_rad: SIGMA_RAD,
+            class: None,
+        }
+    }
+
+    /// A tracked fix at the true pose (the world origin) with the given associations and a
+    /// centimetre covariance, as the refinement gives for exact bearings.
+    fn fix(assignment: Vec<Option<usize>>) -> track::TrackResult {
+        let mut covariance = Matrix6::zeros();
+        for k in 0..3 {
+            covariance[(k, k)] = 0.03 * 0.03;
+            covariance[(k + 3, k + 3)] = 1e-3 * 1e-3;
+        }
+        track::TrackResult {
+            world_from_rig: Pose::identity(),
+            covariance,
+            assignment,
+            rms_residual_rad: 0.0,
+            mean_chi2: 0.05,
+        }
+    }
+
+    fn landmarks() -> [Vector3<f64>; 5] {
+        [
+            Vector3::new(40.0, 5.0, 3.0),
+            Vector3::new(-10.0, 50.0, 8.0),
+            Vector3::new(-60.0, -20.0, 5.0),
+            Vector3::new(15.0, -70.0, 10.0),
+            Vector3::new(80.0, 60.0, 12.0),
+        ]
+    }
+
+    const ONE_FRAME: GuessUncertainty = GuessUncertainty {
+        position_m: 0.05,
+        rotation_rad: 2e-3,
+    };
+    /// The prediction after a 1 s gap (frame 70 of the day drive of issue #25).
+    const AFTER_ONE_SECOND: GuessUncertainty = GuessUncertainty {
+        position_m: 2.1,
+        rotation_rad: 0.5,
+    };
+
+    /// Frame 70 of the day drive (issue #25, helper int25): three surveyed landmarks and a
+    /// surrogate mapped on one of them, which a second camera's sighting of that landmark
+    /// was associated with. Four associations, three points: the pose fits them exactly
+    /// whatever they are, so this is no fix. The same with a fourth distinct landmark is.
+    #[test]
+    fn a_surrogate_on_a_surveyed_landmark_adds_no_redundancy() {
+        let l = landmarks();
+        let mut surrogate = surveyed(0, l[1] + Vector3::new(0.01, -0.01, 0.0));
+        surrogate.sigma_m = 0.015;
+        surrogate.source = CandidateSource::Surrogate(21);
+        surrogate.common_covariance = Some(nalgebra::Matrix3::identity() * 0.015 * 0.015);
+        let candidates = vec![
+            surveyed(0, l[0]),
+            surveyed(1, l[1]),
+            surveyed(2, l[2]),
+            surrogate,
+        ];
+        let camera_a = Vector3::new(0.012, 0.038, 0.0);
+        let camera_b = Vector3::new(-0.032, 0.024, 0.0);
+        let observations = vec![
+            seen(camera_a, &l[0]),
+            seen(camera_a, &l[1]),
+            seen(camera_b, &l[1]),
+            seen(camera_b, &l[2]),
+        ];
+        let t = fix(vec![Some(0), Some(1), Some(3), Some(2)]);
+        let predicted = Pose::identity();
+        assert_eq!(
+            track::distinct_associated_points(&candidates, &t.assignment),
+            (3, 3)
+        );
+        assert!(!tracked_fix_acceptable(
+            &predicted,
+            &ONE_FRAME,
+            &t,
+            &candidates,
+            &observations
+        ));
+
+        // A fourth landmark of its own: a fix.
+        let mut candidates = candidates;
+        candidates[3] = surveyed(3, l[3]);
+        let mut observations = observations;
+        observations[2] = seen(camera_b, &l[3]);
+        let t = fix(vec![Some(0), Some(1), Some(3), Some(2)]);
+        assert_eq!(
+            track::distinct_associated_points(&candidates, &t.assignment),
+            (4, 4)
+        );
+        assert!(tracked_fix_acceptable(
+            &predicted,
+            &ONE_FRAME,
+            &t,
+            &candidates,
+            &observations
+        ));
+    }
+
+    /// Frame 69 of the day drive with the 60 px extent (issue #25, helper int25): after a
+    /// 1 s gap the prediction's gate holds other landmarks than the associated ones, so
+    /// tracking chose the four associations; four bearings leave the χ² test 2 degrees of
+    /// freedom, too few for a chosen set: no fix. The same four associations from a
+    /// one-frame prediction (nothing else in the gates), or five chosen ones, are fixes.
+    #[test]
+    fn four_associations_chosen_in_a_wide_gate_are_no_fix() {
+        let l = landmarks();
+        // Each landmark with a neighbour 15° away around the vertical.
+        let turn = Rotation3::from_axis_angle(&Vector3::z_axis(), 15f64.to_radians());
+        let mut candidates: Vec<Candidate> = (0..5).map(|k| surveyed(k, l[k])).collect();
+        candidates.extend((0..5).map(|k| surveyed(5 + k, turn * l[k])));
+        let cameras = [
+            Vector3::new(0.04, 0.0, 0.0),
+            Vector3::new(0.012, 0.038, 0.0),
+            Vector3::new(-0.032, 0.024, 0.0),
+            Vector3::new(-0.032, -0.024, 0.0),
+            Vector3::new(0.0, 0.0, 0.04),
+        ];
+        let observations: Vec<ObsRay> = (0..5).map(|k| seen(cameras[k], &l[k])).collect();
+        let predicted = Pose::identity();
+        let four = fix(vec![Some(0), Some(1), Some(2), Some(3), None]);
+        assert!(tracked_fix_acceptable(
+            &predicted,
+            &ONE_FRAME,
+            &four,
+            &candidates,
+            &observations
+        ));
+        assert!(track::chosen_among_several(
+            &predicted,
+            &AFTER_ONE_SECOND,
+            &observations,
+            &candidates,
+            &four.assignment
+        ));
+        assert!(!tracked_fix_acceptable(
+            &predicted,
+            &AFTER_ONE_SECOND,
+            &four,
+            &candidates,
+            &observations
+        ));
+        let five = fix(vec![Some(0), Some(1), Some(2), Some(3), Some(4)]);
+        assert!(tracked_fix_acceptable(
+            &predicted,
+            &AFTER_ONE_SECOND,
+            &five,
+            &candidates,
+            &observations
+        ));
     }
 }

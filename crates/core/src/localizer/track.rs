@@ -236,6 +236,89 @@ fn associate(
     assignment
 }
 
+/// The variance (m², largest axis) of a candidate's position: its full covariance for a
+/// surrogate (with the pose-correlation floor it shares with the poses it was mapped from),
+/// its σ² for a surveyed landmark.
+fn position_variance(c: &Candidate) -> f64 {
+    c.common_covariance.map_or(c.sigma_m * c.sigma_m, |cov| {
+        cov.symmetric_eigenvalues().max().max(c.sigma_m * c.sigma_m)
+    })
+}
+
+/// True when candidates `a` and `b` may be one physical landmark: closer than
+/// [`ASSOCIATION_GATE_SIGMAS`] σ of their combined position uncertainty. A surrogate mapped
+/// from sightings of a surveyed landmark (when the observation was not associated with the
+/// surveyed one) sits on it; two observations associated with the pair give one bearing
+/// twice, not two landmarks.
+pub(crate) fn same_point(a: &Candidate, b: &Candidate) -> bool {
+    let d2 = (a.position - b.position).norm_squared();
+    let gate2 = ASSOCIATION_GATE_SIGMAS * ASSOCIATION_GATE_SIGMAS;
+    d2 <= gate2 * (position_variance(a) + position_variance(b))
+}
+
+/// True when, at the pose guess `pose` (uncertainty `guess`), some observation associated
+/// in `assignment` had within its association gate a candidate at another point than the one
+/// it was given (see [`same_point`]): the guess did not decide that association, tracking
+/// chose it. With a wide guess (a prediction over a gap, its attitude σ grown to tenths of a
+/// radian) every observation has several candidates in its gate and a handful of chosen
+/// associations can fit a wrong pose exactly.
+pub(crate) fn chosen_among_several(
+    pose: &Pose,
+    guess: &GuessUncertainty,
+    observations: &[ObsRay],
+    candidates: &[Candidate],
+    assignment: &[Option<usize>],
+) -> bool {
+    let rig_from_world = pose.inverse();
+    let in_rig: Vec<Vector3<f64>> = candidates
+        .iter()
+        .map(|c| (rig_from_world * nalgebra::Point3::from(c.position)).coords)
+        .collect();
+    for (o, a) in observations.iter().zip(assignment) {
+        let Some(mine) = a.and_then(|ci| candidates.get(ci)) else {
+            continue;
+        };
+        for (c, p) in candidates.iter().zip(&in_rig) {
+            if same_point(c, mine) {
+                continue;
+            }
+            let gate = GateTerms::new(guess, c, ASSOCIATION_GATE_SIGMAS);
+            if pair_z(o, c, p, guess, &gate).is_some() {
+                return true;
+            }
+        }
+    }
+    false
+}
+
+/// The number of distinct points (see [`same_point`]) among the associated candidates of
+/// `assignment`, surveyed landmarks counted first: `(surveyed, all)`.
+pub(crate) fn distinct_associated_points(
+    candidates: &[Candidate],
+    assignment: &[Option<usize>],
+) -> (usize, usize) {
+    let associated = || {
+        assignment
+            .iter()
+            .flatten()
+            .filter_map(|&ci| candidates.get(ci))
+    };
+    let mut kept: Vec<&Candidate> = Vec::new();
+    let mut surveyed = 0;
+    for c in associated().filter(|c| matches!(c.source, CandidateSource::Surveyed(_))) {
+        if !kept.iter().any(|k| same_point(k, c)) {
+            kept.push(c);
+            surveyed += 1;
+        }
+    }
+    for c in associated().filter(|c| matches!(c.source, CandidateSource::Surrogate(_))) {
+        if !kept.iter().any(|k| same_point(k, c)) {
+            kept.push(c);
+        }
+    }
+    (surveyed, kept.len())
+}
+
 /// Tracks from a pose guess: associate, refine, drop outliers, re-associate with the
 /// refined pose. `None` when fewer than `min_correspondences` associations survive or the
 /// refinement fails.
