@@ -19,7 +19,11 @@ Example::
 from __future__ import annotations
 
 import os
-from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
+# The typing names are for annotations only (not evaluated: `from __future__ import
+# annotations`); importing `typing` would be most of the cost of `import vgps`.
+TYPE_CHECKING = False
+if TYPE_CHECKING:
+    from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 from ._vgps import Calibration, Localizer, VgpsError, p3p, triangulate
 from ._vgps import _locate, _run_cli
