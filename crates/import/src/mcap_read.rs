@@ -455,7 +455,9 @@ fn decompress_chunk<'d>(
         "zstd" => {
             zstd::stream::read::Decoder::new(data).and_then(|d| d.take(bound).read_to_end(&mut out))
         }
-        "lz4" => lz4::Decoder::new(data).and_then(|d| d.take(bound).read_to_end(&mut out)),
+        "lz4" => lz4_flex::frame::FrameDecoder::new(data)
+            .take(bound)
+            .read_to_end(&mut out),
         _ => return Ok(None),
     };
     read.map_err(|e| format!("cannot decompress: {e}"))?;
@@ -693,11 +695,9 @@ mod tests {
 
     fn lz4_pack(b: &[u8]) -> Vec<u8> {
         use std::io::Write;
-        let mut e = lz4::EncoderBuilder::new().build(Vec::new()).unwrap();
+        let mut e = lz4_flex::frame::FrameEncoder::new(Vec::new());
         e.write_all(b).unwrap();
-        let (out, result) = e.finish();
-        result.unwrap();
-        out
+        e.finish().unwrap()
     }
 
     /// The same framing fault inside a zstd or lz4 chunk: before the fix the `mcap` crate
