@@ -634,14 +634,14 @@ fn _run_cli(py: Python<'_>, args: Vec<String>) -> PyResult<String> {
 /// ...     fix = loc.process(t, pixels=pixels, camera=cameras, gnss=gps_or_none)
 /// ...     if fix["status"] == "ok":
 /// ...         publish(fix["lat_lon_alt"], fix["enu_from_rig_wxyz"], fix["covariance"])
-#[pyclass(module = "vgps")]
-struct Localizer {
+#[pyclass(module = "vgps", name = "Localizer")]
+struct PyLocalizer {
     inner: localizer::Localizer,
     map: Arc<LandmarkMap>,
 }
 
 #[pymethods]
-impl Localizer {
+impl PyLocalizer {
     /// A localizer for a calibration and a landmark map (CSV path or columns tuple).
     #[new]
     #[pyo3(signature = (calibration, landmarks, *, pixel_sigma_px = None, cold_start = true,
@@ -828,6 +828,6 @@ fn vgps_python(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(_locate, m)?)?;
     m.add_function(wrap_pyfunction!(_run_cli, m)?)?;
     m.add_class::<Calibration>()?;
-    m.add_class::<Localizer>()?;
+    m.add_class::<PyLocalizer>()?;
     Ok(())
 }

@@ -207,7 +207,7 @@ impl Renderer {
             let n = out.len().min(self.noise_tile.len() - offset);
             out[..n].copy_from_slice(&self.noise_tile[offset..offset + n]);
         }
-        let mut canvas = Canvas {
+        let mut canvas = Exposure {
             pixels: &mut pixels,
             width: w,
             height: h,
@@ -340,7 +340,7 @@ impl Blob {
     }
 }
 
-struct Canvas<'a> {
+struct Exposure<'a> {
     pixels: &'a mut [u8],
     width: usize,
     height: usize,
@@ -348,7 +348,7 @@ struct Canvas<'a> {
     gain: f64,
 }
 
-impl Canvas<'_> {
+impl Exposure<'_> {
     fn draw(&mut self, blob: &Blob, kind: SpotKind, range: Option<f64>) -> RenderedSpot {
         let (cu, cv) = (blob.centre.x, blob.centre.y);
         let (w, h) = (self.width as f64, self.height as f64);

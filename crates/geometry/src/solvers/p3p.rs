@@ -466,7 +466,7 @@ fn solve_prepared(
     let u1 = d12 * (1.0 / a12r.sqrt());
     let u3 = normal * (1.0 / nn.sqrt());
     let u2 = u3.cross(&u1);
-    let frame = Frame {
+    let frame = ProblemSetup {
         ys: [y1, y2, y3],
         x1: *x1,
         u: [u1, u2, u3],
@@ -545,7 +545,7 @@ fn solve_prepared(
 
 /// What the candidates of one problem share: the rig-frame bearings, the world triangle's
 /// first point and orthonormal frame, and the normalised distance equations.
-struct Frame {
+struct ProblemSetup {
     /// Unit bearings.
     ys: [Vector3<f64>; 3],
     /// First world point.
@@ -562,7 +562,7 @@ struct Frame {
     up: Option<UpLimit>,
 }
 
-impl Frame {
+impl ProblemSetup {
     /// Completes a candidate direction of the ranges (any scale and sign) into a pose and
     /// pushes it, if its ranges are positive and satisfy the distance equations.
     #[inline(always)]

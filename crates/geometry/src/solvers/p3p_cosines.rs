@@ -267,7 +267,7 @@ struct Residual {
 
 /// The ranges and the residual terms at one parameter value, shared by both `r_b` branches.
 #[derive(Clone, Copy)]
-struct Sample {
+struct BranchSample {
     r0: f64,
     ra: f64,
     /// `√(s₀b² − r₀² sin² θ₀b)`.
@@ -279,7 +279,7 @@ struct Sample {
     db_root: f64,
 }
 
-impl Sample {
+impl BranchSample {
     /// The residual and its derivative on branch `sign` (±1).
     #[inline]
     fn value(&self, sign: f64) -> (f64, f64) {
@@ -374,7 +374,7 @@ impl Node {
 
 impl Residual {
     #[inline]
-    fn sample(&self, sin_a: f64, cos_a: f64) -> Sample {
+    fn sample(&self, sin_a: f64, cos_a: f64) -> BranchSample {
         let r0 = self.radius * (self.sin_0a * cos_a + self.cos_0a * sin_a);
         let ra = self.radius * sin_a;
         let dr0 = self.radius * (self.cos_0a * cos_a - self.sin_0a * sin_a);
@@ -390,7 +390,7 @@ impl Residual {
         let da = 2.0 * (ra * dra + self.cos2_0b * (r0 * dr0)) - self.k_ab * (dra * r0 + ra * dr0);
         let b = 2.0 * (r0 * self.cos_0b - self.cos_ab * ra);
         let db = 2.0 * (dr0 * self.cos_0b - self.cos_ab * dra);
-        Sample {
+        BranchSample {
             r0,
             ra,
             root,
@@ -403,7 +403,7 @@ impl Residual {
 
     /// `r_b` on branch `sign` (±1).
     #[inline]
-    fn rb(&self, x: &Sample, sign: f64) -> f64 {
+    fn rb(&self, x: &BranchSample, sign: f64) -> f64 {
         x.r0 * self.cos_0b + sign * x.root
     }
 

@@ -101,15 +101,15 @@ pub fn read_nclt_gps(
         }
         stats.entries += 1;
         match parse_row(&record) {
-            Ok(Row::Fix(r)) => {
+            Ok(GpsRow::Fix(r)) => {
                 stats.fixes += 1;
                 records.push(r);
             }
-            Ok(Row::NoFix(r)) => {
+            Ok(GpsRow::NoFix(r)) => {
                 stats.no_fix += 1;
                 records.push(r);
             }
-            Ok(Row::Invalid(reason)) => {
+            Ok(GpsRow::Invalid(reason)) => {
                 stats.invalid_position += 1;
                 stats.note(format!("line {line}: {reason}; skipped"));
             }
@@ -133,7 +133,7 @@ pub fn read_nclt_gps(
     Ok((records, stats))
 }
 
-enum Row {
+enum GpsRow {
     Fix(GnssRecord),
     NoFix(GnssRecord),
     Invalid(String),
@@ -165,7 +165,7 @@ fn integer(record: &csv::StringRecord, k: usize) -> Result<i64, (&'static str, S
     }
 }
 
-fn parse_row(record: &csv::StringRecord) -> Result<Row, (&'static str, String)> {
+fn parse_row(record: &csv::StringRecord) -> Result<GpsRow, (&'static str, String)> {
     let utime = integer(record, 0)?;
     let mode = integer(record, 1)?;
     let sats = integer(record, 2)?;
@@ -174,7 +174,7 @@ fn parse_row(record: &csv::StringRecord) -> Result<Row, (&'static str, String)> 
     let alt_m = number(record, 5)?;
     let time_s = utime.div_euclid(MICROS) as f64 + utime.rem_euclid(MICROS) as f64 * 1e-6;
     if mode < MIN_FIX_MODE {
-        return Ok(Row::NoFix(GnssRecord {
+        return Ok(GpsRow::NoFix(GnssRecord {
             time_s,
             fix: None,
             heading_deg: None,
@@ -182,12 +182,12 @@ fn parse_row(record: &csv::StringRecord) -> Result<Row, (&'static str, String)> 
     }
     let (lat, lon) = (lat_rad.to_degrees(), lng_rad.to_degrees());
     if lon.abs() > MAX_LON_DEG {
-        return Ok(Row::Invalid(format!(
+        return Ok(GpsRow::Invalid(format!(
             "mode {mode} with longitude {lng_rad} rad outside [-π, π]"
         )));
     }
     match Geodetic::try_new(lat, lon, alt_m) {
-        Ok(position) => Ok(Row::Fix(GnssRecord {
+        Ok(position) => Ok(GpsRow::Fix(GnssRecord {
             time_s,
             fix: Some(GnssFix {
                 position,
@@ -197,7 +197,7 @@ fn parse_row(record: &csv::StringRecord) -> Result<Row, (&'static str, String)> 
             }),
             heading_deg: None,
         })),
-        Err(e) => Ok(Row::Invalid(format!(
+        Err(e) => Ok(GpsRow::Invalid(format!(
             "mode {mode} with an invalid position (lat {lat_rad} rad, lng {lng_rad} rad, alt {alt_m} m): {e}"
         ))),
     }

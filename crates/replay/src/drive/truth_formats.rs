@@ -132,7 +132,7 @@ impl TruthRead {
 
 /// A reference sample at a time.
 #[derive(Clone, Copy, Debug)]
-struct Sample {
+struct TruthSample {
     time_s: f64,
     position: Geodetic,
     enu_from_rig: UnitQuaternion<f64>,
@@ -297,7 +297,7 @@ pub fn read_truth(path: &Path, text: &str, frames: &[FrameRecord]) -> Result<Tru
     Ok(read)
 }
 
-fn ins_samples(path: &Path, text: &str, read: &mut TruthRead) -> Result<Vec<Sample>, String> {
+fn ins_samples(path: &Path, text: &str, read: &mut TruthRead) -> Result<Vec<TruthSample>, String> {
     let file = path.display();
     let mut lines = text
         .trim_start_matches('\u{feff}')
@@ -352,7 +352,7 @@ fn ins_samples(path: &Path, text: &str, read: &mut TruthRead) -> Result<Vec<Samp
             ));
             continue;
         };
-        out.push(Sample {
+        out.push(TruthSample {
             time_s: v[0],
             position,
             enu_from_rig: enu_from_rig_of_ned_euler(
@@ -365,7 +365,7 @@ fn ins_samples(path: &Path, text: &str, read: &mut TruthRead) -> Result<Vec<Samp
     Ok(sorted(out))
 }
 
-fn nclt_samples(path: &Path, text: &str, read: &mut TruthRead) -> Vec<Sample> {
+fn nclt_samples(path: &Path, text: &str, read: &mut TruthRead) -> Vec<TruthSample> {
     let file = path.display();
     let names = ["utime", "x", "y", "z", "roll", "pitch", "yaw"];
     let mut out = Vec::new();
@@ -377,7 +377,7 @@ fn nclt_samples(path: &Path, text: &str, read: &mut TruthRead) -> Vec<Sample> {
             ));
             continue;
         };
-        out.push(Sample {
+        out.push(TruthSample {
             time_s: v[0] * 1e-6,
             position,
             enu_from_rig: enu_from_rig_of_ned_euler(v[4], v[5], v[6]),
@@ -386,7 +386,7 @@ fn nclt_samples(path: &Path, text: &str, read: &mut TruthRead) -> Vec<Sample> {
     sorted(out)
 }
 
-fn tum_samples(path: &Path, text: &str, read: &mut TruthRead) -> Result<Vec<Sample>, String> {
+fn tum_samples(path: &Path, text: &str, read: &mut TruthRead) -> Result<Vec<TruthSample>, String> {
     let file = path.display();
     let origin = text
         .lines()
@@ -425,7 +425,7 @@ fn tum_samples(path: &Path, text: &str, read: &mut TruthRead) -> Result<Vec<Samp
         let enu_here_from_enu0 = UnitQuaternion::from_rotation_matrix(
             &vgps_geometry::geo::LocalFrame::new(position).enu_here_from_enu_at(&o),
         );
-        out.push(Sample {
+        out.push(TruthSample {
             time_s: v[0],
             position,
             enu_from_rig: enu_here_from_enu0 * q,
@@ -434,13 +434,13 @@ fn tum_samples(path: &Path, text: &str, read: &mut TruthRead) -> Result<Vec<Samp
     Ok(sorted(out))
 }
 
-fn sorted(mut samples: Vec<Sample>) -> Vec<Sample> {
+fn sorted(mut samples: Vec<TruthSample>) -> Vec<TruthSample> {
     samples.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
     samples
 }
 
 /// The truth of each frame, interpolated between the samples around its time.
-fn at_frames(samples: &[Sample], frames: &[FrameRecord]) -> Vec<TruthRecord> {
+fn at_frames(samples: &[TruthSample], frames: &[FrameRecord]) -> Vec<TruthRecord> {
     let mut out = Vec::new();
     for f in frames {
         let k = samples.partition_point(|s| s.time_s <= f.time_s);

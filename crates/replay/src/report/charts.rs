@@ -178,11 +178,11 @@ pub(crate) fn draw_track<DB: DrawingBackend>(
     };
     let mut chart = chart_on(c, (x0..x1, y0..y1))?;
     draw_mesh(&mut chart.configure_mesh(), c, ("east (m)", "north (m)"))?;
-    type Get = fn(&FrameGeom) -> Option<nalgebra::Vector3<f64>>;
-    type Track<'a> = (&'a str, Get, (u8, u8, u8), u32);
+    type PointOf = fn(&FrameGeom) -> Option<nalgebra::Vector3<f64>>;
+    type TrackStyle<'a> = (&'a str, PointOf, (u8, u8, u8), u32);
     // Width 1 for the noisy tracks: plotters' wide bitmap polylines draw miter spikes at
     // sharp turns.
-    let tracks: [Track; 3] = [
+    let tracks: [TrackStyle; 3] = [
         ("truth", |g| g.truth, TRUTH_RGB, 2),
         ("satellite", |g| g.gnss, GNSS_RGB, 1),
         ("visual", |g| g.visual, VISUAL_RGB, 1),
