@@ -584,12 +584,13 @@ fn detect_frame(
 /// come from the images, else [`DEFAULT_VISIBILITY_RANGE_M`]. A `detections.csv` replay
 /// keeps the default whatever `--detector` says: its detections are not the detector's.
 fn visibility_range_m(flag: Option<f64>, from_images: bool, detector: DetectorKind) -> f64 {
-    flag.or_else(|| {
-        from_images
-            .then(|| detector.visibility_range_m())
-            .flatten()
-    })
-    .unwrap_or(DEFAULT_VISIBILITY_RANGE_M)
+    match flag {
+        Some(m) => m,
+        None if from_images => detector
+            .visibility_range_m()
+            .unwrap_or(DEFAULT_VISIBILITY_RANGE_M),
+        None => DEFAULT_VISIBILITY_RANGE_M,
+    }
 }
 
 #[cfg(test)]
