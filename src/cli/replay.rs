@@ -22,7 +22,7 @@ use vgps_core::matcher::{DEFAULT_VISIBILITY_RANGE_M, MatchOptions};
 use vgps_import::mcap_import::{FrameStream, RecordingImages};
 use vgps_replay::drive::gnss::gnss_at;
 use vgps_replay::drive::{Drive, FrameStatus};
-use vgps_replay::frame_images::ImageDetector;
+use vgps_replay::frame_images::{DetectorKind, ImageDetector};
 use vgps_replay::report::{DriveInfo, FrameOutcome, Report, Truth, VisualFix, summary_table};
 
 /// The status of a frame none of whose images could be used.
@@ -83,8 +83,9 @@ pub struct ReplayArgs {
     #[arg(long, value_name = "DEG", value_parser = super::args::parse_non_negative)]
     pub up_tolerance_deg: Option<f64>,
     /// Landmarks farther than this are not expected to be seen (metres; the matcher's
-    /// visibility range, default 80 m). Building corners are found by day to 150 m
-    /// (docs/dev/journal.md, fifteenth session).
+    /// visibility range). Default 80 m, but 150 m when the detections come from the images
+    /// through `--detector vertex`: building corners are found by day to 150 m
+    /// (docs/dev/journal.md, 2026-11-27).
     #[arg(long, value_name = "M", value_parser = super::args::parse_positive)]
     pub visibility_range_m: Option<f64>,
     /// Detect landmarks in the images even when the drive has `detections.csv`.
@@ -182,6 +183,7 @@ pub fn run(
             .map_err(|e| CliError::Calibration(format!("{}: {e}", settings.drive.display())))?,
     );
     let rig = Arc::new(drive.rig().clone());
+    let from_images = settings.from_images || drive.manifest().detections.is_none();
     let options = LocalizerOptions {
         pixel_sigma_px: settings.pixel_sigma_px,
         surrogates: settings.surrogates,
@@ -191,9 +193,11 @@ pub fn run(
             .or(rig.level_within_rad())
             .or(LocalizerOptions::default().level_tolerance_rad),
         matcher: MatchOptions {
-            visibility_range_m: settings
-                .visibility_range_m
-                .unwrap_or(DEFAULT_VISIBILITY_RANGE_M),
+            visibility_range_m: visibility_range_m(
+                settings.visibility_range_m,
+                from_images,
+                settings.detector,
+            ),
             ..LocalizerOptions::default().matcher
         },
         ..LocalizerOptions::default()
@@ -208,7 +212,6 @@ pub fn run(
             format!("{}: {e}", out_dir.display()),
         ))
     })?;
-    let from_images = settings.from_images || drive.manifest().detections.is_none();
     let frames = drive.frames();
     let progress = (!settings.quiet && std::io::stderr().is_terminal()).then(|| {
         let bar = indicatif::ProgressBar::new(frames.len() as u64);
@@ -573,5 +576,42 @@ fn detect_frame(
             detections: std::borrow::Cow::Owned(result.detections),
             unusable_images,
         }
+    }
+}
+
+/// The matcher's visibility range: the flag's, else the image detector's own
+/// ([`DetectorKind::visibility_range_m`]: 150 m for building corners) when the detections
+/// come from the images, else [`DEFAULT_VISIBILITY_RANGE_M`]. A `detections.csv` replay
+/// keeps the default whatever `--detector` says: its detections are not the detector's.
+fn visibility_range_m(flag: Option<f64>, from_images: bool, detector: DetectorKind) -> f64 {
+    match flag {
+        Some(m) => m,
+        None if from_images => detector
+            .visibility_range_m()
+            .unwrap_or(DEFAULT_VISIBILITY_RANGE_M),
+        None => DEFAULT_VISIBILITY_RANGE_M,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn building_corners_from_images_are_matched_to_150_m_and_everything_else_to_80_m() {
+        use DetectorKind::{Point, Street, Vertex};
+        assert_eq!(visibility_range_m(None, true, Vertex), 150.0);
+        // Lamps by night, and any detections.csv replay, keep the matcher's default.
+        for (from_images, detector) in [(true, Point), (true, Street), (false, Vertex)] {
+            assert_eq!(
+                visibility_range_m(None, from_images, detector),
+                DEFAULT_VISIBILITY_RANGE_M,
+                "{from_images} {detector:?}"
+            );
+        }
+        assert_eq!(DEFAULT_VISIBILITY_RANGE_M, 80.0);
+        // The flag wins over both.
+        assert_eq!(visibility_range_m(Some(60.0), true, Vertex), 60.0);
+        assert_eq!(visibility_range_m(Some(120.0), false, Point), 120.0);
     }
 }

@@ -8,7 +8,8 @@
 //! visibility range), prints a tally of: found (a detection within 3 px), or the fate of
 //! the nearest candidate within 3 px (its `Rejection`), or no candidate within 3 px.
 //! With a fourth argument OUT.csv it writes instead the detections of those frames as a
-//! detections CSV (`VERTEX_MIN_EXTENT_PX` sets `VertexConfig::min_edge_extent_px`).
+//! detections CSV (`VERTEX_MIN_EXTENT_PX`, `VERTEX_MIN_RESPONSE` and
+//! `VERTEX_MIN_OPEN_SIDE_DN` set those fields of `VertexConfig`).
 
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -55,6 +56,18 @@ fn main() {
         .and_then(|x| x.parse().ok())
     {
         detector.config.min_edge_extent_px = x;
+    }
+    if let Some(x) = std::env::var("VERTEX_MIN_RESPONSE")
+        .ok()
+        .and_then(|x| x.parse().ok())
+    {
+        detector.config.min_response = x;
+    }
+    if let Some(x) = std::env::var("VERTEX_MIN_OPEN_SIDE_DN")
+        .ok()
+        .and_then(|x| x.parse().ok())
+    {
+        detector.config.min_open_side_dn = x;
     }
     let mut out = args.get(4).map(|p| {
         let mut f = std::io::BufWriter::new(std::fs::File::create(p).expect("output file"));

@@ -30,6 +30,15 @@ pub const DEFAULT_LAMP_CLASS: &str = "streetlight";
 /// the matcher pairs a corner only with corner landmarks.
 pub const CORNER_CLASS: &str = "corner";
 
+/// The matcher's visibility range (metres) for the vertex detector's building corners.
+///
+/// By day the vertex detector finds building corners well beyond the matcher's default 80 m
+/// (recall 23–31 % at 80–150 m, as within 80 m; docs/dev/journal.md, 2026-11-27); with 80 m
+/// the matcher ignores them and a frame keeps a median of 4 surveyed corners. With 150 m the
+/// day drives replayed from their images fix 83/153 and 63/87 frames instead of 70 and 5,
+/// none more than 0.21 m off (journal, "day4").
+pub const VERTEX_VISIBILITY_RANGE_M: f64 = 150.0;
+
 /// Which lamp detector runs on the images.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum DetectorKind {
@@ -52,6 +61,16 @@ impl DetectorKind {
             Self::Point => "point",
             Self::Street => "street",
             Self::Vertex => "vertex",
+        }
+    }
+
+    /// The matcher's visibility range (metres) for this detector's detections when no
+    /// `--visibility-range-m` is given: `None` (the matcher's default, 80 m) for the lamp
+    /// detectors, [`VERTEX_VISIBILITY_RANGE_M`] for the vertex detector.
+    pub fn visibility_range_m(self) -> Option<f64> {
+        match self {
+            Self::Point | Self::Street => None,
+            Self::Vertex => Some(VERTEX_VISIBILITY_RANGE_M),
         }
     }
 
