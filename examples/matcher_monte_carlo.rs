@@ -13,6 +13,8 @@
 //! `round(TRUE_DET · f / (1 − f))` false ones, 4 of 18 for 0.2 and 9 of 23 for 0.4 with the
 //! default 14 true; overrides `FALSE_DET`).
 //!
+//! `MAX_HYP=N`: the budget of P3P solves per frame (`MatchOptions::max_hypotheses`).
+//!
 //! `MAX_SECONDS=S`: stop drawing frames after S seconds of wall time (the summary counts the
 //! frames matched; for the slow regimes on a shared machine).
 //!
@@ -102,6 +104,10 @@ fn main() {
             .ok()
             .and_then(|s| s.parse().ok())
             .unwrap_or(MatchOptions::default().max_false_alarms),
+        max_hypotheses: std::env::var("MAX_HYP")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(MatchOptions::default().max_hypotheses),
         ..MatchOptions::default()
     };
     let (mut right, mut wrong, mut ambiguous, mut none) = (0usize, 0usize, 0usize, 0usize);

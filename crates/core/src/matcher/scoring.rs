@@ -287,15 +287,21 @@ impl Search<'_> {
     /// detections explained by other landmarks), the triple, made of true detections, also
     /// generates the true pose, which then outranks it or ties with it: the conclusion sees
     /// both, as it would after any other triple of true detections.
-    pub(super) fn confirmation_triple(
+    ///
+    /// Up to `limit` such triples, in that order (the caller may weigh them further).
+    pub(super) fn confirmation_triples(
         &self,
         enough: usize,
         allowed_counts: &[usize],
         tried: &[[usize; 3]],
-    ) -> Option<[usize; 3]> {
-        let top = self.kept.first()?;
+        limit: usize,
+    ) -> Vec<[usize; 3]> {
+        let mut found = Vec::new();
+        let Some(top) = self.kept.first() else {
+            return found;
+        };
         if top.inliers < enough || top.confirming.len() >= STOP_CONFIRMATIONS as usize {
-            return None;
+            return found;
         }
         let mut pool: Vec<usize> = top
             .explained
@@ -318,12 +324,15 @@ impl Search<'_> {
                         && determinant.abs() > RELIABLE_DETERMINANT_NOISES * self.noise
                         && !tried.contains(&t)
                     {
-                        return Some(t);
+                        found.push(t);
+                        if found.len() >= limit {
+                            return found;
+                        }
                     }
                 }
             }
         }
-        None
+        found
     }
 
     /// The effective bearing σ of landmark `l` at `range` metres: the bearing noise and the

@@ -31,7 +31,7 @@ pub(super) struct KeptHypothesis {
     /// pose's confirmations).
     pub(super) confirming: Vec<[usize; 3]>,
     /// The detections the pose explains (at the hypothesis threshold), in index order: the
-    /// pool of its confirmation triples ([`Search::confirmation_triple`]).
+    /// pool of its confirmation triples ([`Search::confirmation_triples`]).
     pub(super) explained: Vec<usize>,
 }
 
@@ -42,6 +42,14 @@ pub(super) const NO_LANDMARKS_IN_RANGE: &str =
 /// The determinant of three unit bearings has a reliable sign when it exceeds this many
 /// times the per-bearing noise bound (each bearing moves by at most the bound).
 pub(super) const RELIABLE_DETERMINANT_NOISES: f64 = 3.0;
+
+/// Cells sampled (evenly over the visiting order) to measure the cost of each detection
+/// triple when no vertical is known ([`Search::order_by_sampled_cost`]).
+pub(super) const COST_SAMPLE_CELLS: usize = 16;
+
+/// Confirmation triples weighed by their sampled cost when no vertical is known (the
+/// cheapest is run).
+pub(super) const CONFIRMATION_CANDIDATES: usize = 24;
 
 /// Initial capacity of the map of solved landmark triples (one detection triple's worth
 /// over a prior; a cold start grows it).
@@ -612,7 +620,7 @@ impl Search<'_> {
             let budget = options
                 .max_detection_triples
                 .saturating_mul(core_size.div_ceil(options.max_core_detections));
-            let triples = round_triples(
+            let mut triples = round_triples(
                 &self.angles,
                 core,
                 previous,
@@ -620,8 +628,11 @@ impl Search<'_> {
                 budget,
                 &frame.allowed_counts,
             );
+            if self.up.is_none() {
+                self.order_by_sampled_cost(cells, context, &mut triples, &mut work.survivors);
+            }
             // The next triple: a confirmation triple of the best pose when one is due (see
-            // `Search::confirmation_triple`), else the next of the round's triples.
+            // `Search::confirmation_triples`), else the next of the round's triples.
             let mut next = 0;
             let mut confirmation: Option<[usize; 3]> = None;
             loop {
@@ -650,11 +661,28 @@ impl Search<'_> {
                     return fix;
                 }
                 if confirmations_tried.len() < MAX_CONFIRMATION_TRIPLES {
-                    confirmation = self.confirmation_triple(
+                    // Without a vertical the pool's order says nothing of the cost: the
+                    // cheapest of the first few by sampled cost.
+                    let limit = if self.up.is_none() {
+                        CONFIRMATION_CANDIDATES
+                    } else {
+                        1
+                    };
+                    let mut candidates = self.confirmation_triples(
                         enough,
                         &frame.allowed_counts,
                         &confirmations_tried,
+                        limit,
                     );
+                    if candidates.len() > 1 {
+                        self.order_by_sampled_cost(
+                            cells,
+                            context,
+                            &mut candidates,
+                            &mut work.survivors,
+                        );
+                    }
+                    confirmation = candidates.first().copied();
                     confirmations_tried.extend(confirmation);
                 }
             }
@@ -670,6 +698,45 @@ impl Search<'_> {
             round += 1;
         }
         conclude(self, cells.len())
+    }
+
+    /// Without a known vertical every detection may be every candidate (`allowed_counts`
+    /// are all equal), so [`round_triples`]' order is random, while the landmark triples a
+    /// detection triple lets through its pair tables, and so its P3P solves, differ several
+    /// times between triples (0.2–1.7 million solves over 1 km² of issue #25's random
+    /// layout, 12 m cells): a pair of bearings far apart allows a landmark pair under a
+    /// tolerance that grows with the angle (`pair_angle_wander`), and landmark pairs at wide
+    /// angles are the many. Over a cold start two random triples spent the whole budget of
+    /// solves, so that in 10 of 10 frames no triple of true detections ran at all (the
+    /// truth was never generated: `no_match`). So the triples are run
+    /// cheapest first by their measured cost: the landmark triples that pass their tables
+    /// in [`COST_SAMPLE_CELLS`] cells spread over the visiting order (stable sort, ties
+    /// keep the pseudo-random order). This changes only the order: the same triples are
+    /// run unless the budget or the early stop ends the search, and the acceptance test
+    /// counts the poses actually tried.
+    fn order_by_sampled_cost(
+        &self,
+        cells: &mut Cells,
+        context: &PairContext,
+        triples: &mut [[usize; 3]],
+        survivors: &mut Vec<[usize; 3]>,
+    ) {
+        let n = self.detections.len();
+        let stride = cells.len().div_ceil(COST_SAMPLE_CELLS).max(1);
+        let mut costs: Vec<(usize, [usize; 3])> = triples.iter().map(|&t| (0, t)).collect();
+        for cell in cells.iter_mut().step_by(stride) {
+            for (cost, [a, b, c]) in &mut costs {
+                for (p, q) in [(*a, *b), (*a, *c), (*b, *c)] {
+                    self.ensure_table(cell, context, p, q);
+                }
+                table_survivors(cell, n, [*a, *b, *c], survivors);
+                *cost += survivors.len();
+            }
+        }
+        costs.sort_by_key(|&(cost, _)| cost);
+        for (slot, (_, t)) in triples.iter_mut().zip(costs) {
+            *slot = t;
+        }
     }
 
     /// The landmark triples of every cell in visiting order for a detection triple (in
