@@ -13,8 +13,9 @@ MCAP writers (PyPI `mcap` + `mcap-ros2-support`), so that CI needs neither ROS n
 pure Python, far too slow for a long drive).
 
 run.mcap (zstd chunks, as rosbag2 records):
-  /ladybug/cam<k>/image/compressed  sensor_msgs/msg/CompressedImage, the drive's PNGs as
-                                    they are, k = 0..4; stamps = frame time + k ms
+  /ladybug/cam<k>/image/compressed  sensor_msgs/msg/CompressedImage, the drive's PNGs (or
+                                    JPEGs, `simulate --jpeg-quality`) as they are, k = 0..4;
+                                    stamps = frame time + k ms
   /ladybug/cam5/image_raw           sensor_msgs/msg/Image mono8 (the PNG's pixels)
   frame 2 has no image of camera 4 (a dropped message)
   /gps/fix                          sensor_msgs/msg/NavSatFix from gnss.nmea (status -1
@@ -54,6 +55,11 @@ IMU = ("std_msgs/Header header\ngeometry_msgs/Quaternion orientation\n"
        "float64[9] linear_acceleration_covariance\n" + STD_HEADER + QUAT + VEC)
 CAMINFO = ("std_msgs/Header header\nuint32 height\nuint32 width\nstring distortion_model\n"
            "float64[] d\nfloat64[9] k\nfloat64[9] r\nfloat64[12] p\n" + STD_HEADER)
+
+
+def image_format(name):
+    """CompressedImage.format of a drive's image file: `jpeg` or `png`, by its extension."""
+    return "jpeg" if name.lower().endswith((".jpg", ".jpeg")) else "png"
 
 
 def ns_of(text):
@@ -166,7 +172,8 @@ def main(src, out, drop=True, raw5=True):
                 stamp = t + k * 1_000_000
                 if k < 5 or not raw5:
                     w.write_message(f"/ladybug/cam{k}/image/compressed", s_comp, {
-                        "header": header(stamp, f"cam{k}"), "format": "png", "data": data},
+                        "header": header(stamp, f"cam{k}"),
+                        "format": image_format(row[f"image_{k}"]), "data": data},
                         log_time=stamp + 5_000_000)
                 else:
                     width, height, pixels = png_gray8(data)
