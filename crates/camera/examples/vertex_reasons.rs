@@ -69,6 +69,42 @@ fn main() {
     {
         detector.config.min_open_side_dn = x;
     }
+    if let Some(x) = std::env::var("VERTEX_MIN_ANGLE_DEG")
+        .ok()
+        .and_then(|x| x.parse().ok())
+    {
+        detector.config.min_angle_deg = x;
+    }
+    if let Some(x) = std::env::var("VERTEX_MIN_PEAK_SHARE")
+        .ok()
+        .and_then(|x| x.parse().ok())
+    {
+        detector.config.min_peak_share = x;
+    }
+    if let Some(x) = std::env::var("VERTEX_MAX_CANDIDATES")
+        .ok()
+        .and_then(|x| x.parse().ok())
+    {
+        detector.config.max_candidates = x;
+    }
+    // VERTEX_TABLE=PATH: one row per truth corner with its nearest candidate (any
+    // response: run with a low VERTEX_MIN_RESPONSE to see the ones below the default),
+    // the local contrast (p95 − p5 of the 15 × 15 px around it) and its fate.
+    // The response a candidate needs to count as found in the table (default 40, the
+    // detector's default threshold).
+    let found_response: f32 = std::env::var("VERTEX_FOUND_RESPONSE")
+        .ok()
+        .and_then(|x| x.parse().ok())
+        .unwrap_or(40.0);
+    let mut table = std::env::var("VERTEX_TABLE").ok().map(|p| {
+        let mut f = std::io::BufWriter::new(std::fs::File::create(p).expect("table file"));
+        writeln!(
+            f,
+            "frame,camera,u,v,range_m,cand_dist,response,outcome,contrast,p5,p95,found,error_px"
+        )
+        .expect("write");
+        f
+    });
     let mut out = args.get(4).map(|p| {
         let mut f = std::io::BufWriter::new(std::fs::File::create(p).expect("output file"));
         writeln!(f, "frame,camera,u,v,strength,class").expect("write");
@@ -106,6 +142,62 @@ fn main() {
                 continue;
             }
             let explained = detector.explain(&image, Some(model), masks[cam].as_ref());
+            if let Some(t) = table.as_mut() {
+                for &(u, v, r) in truths {
+                    let near = explained
+                        .iter()
+                        .filter(|c| (c.u as f64 - u).hypot(c.v as f64 - v) <= 3.0)
+                        .min_by(|a, b| {
+                            let da = (a.u as f64 - u).hypot(a.v as f64 - v);
+                            let db = (b.u as f64 - u).hypot(b.v as f64 - v);
+                            da.total_cmp(&db)
+                        });
+                    let mut vals = Vec::new();
+                    for dv in -7i64..=7 {
+                        for du in -7i64..=7 {
+                            let (x, y) = (u.round() as i64 + du, v.round() as i64 + dv);
+                            if x >= 0
+                                && y >= 0
+                                && x < image.width() as i64
+                                && y < image.height() as i64
+                            {
+                                vals.push(image.get_pixel(x as u32, y as u32).0[0]);
+                            }
+                        }
+                    }
+                    vals.sort_unstable();
+                    let (p5, p95) = if vals.is_empty() {
+                        (0, 0)
+                    } else {
+                        (vals[vals.len() / 20], vals[vals.len() * 19 / 20])
+                    };
+                    let (dist, resp, outcome) = match near {
+                        None => (f64::NAN, f32::NAN, "none".to_string()),
+                        Some(c) => (
+                            (c.u as f64 - u).hypot(c.v as f64 - v),
+                            c.response,
+                            match c.outcome {
+                                Ok(d) if (d.u - u).hypot(d.v - v) <= 3.0 => "found".to_string(),
+                                Ok(_) => "off".to_string(),
+                                Err(e) => format!("{e:?}"),
+                            },
+                        ),
+                    };
+                    let error = explained
+                        .iter()
+                        .filter(|c| c.response >= found_response)
+                        .filter_map(|c| c.outcome.as_ref().ok())
+                        .map(|d| (d.u - u).hypot(d.v - v))
+                        .fold(f64::INFINITY, f64::min);
+                    let found = error <= 3.0;
+                    writeln!(
+                        t,
+                        "{frame},{cam},{u},{v},{r},{dist},{resp},{outcome},{},{p5},{p95},{found},{error}",
+                        i32::from(p95) - i32::from(p5)
+                    )
+                    .expect("write");
+                }
+            }
             for &(u, v, r) in truths {
                 let found = explained.iter().any(|c| {
                     c.outcome.as_ref().is_ok_and(|d| {
