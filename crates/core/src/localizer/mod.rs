@@ -836,6 +836,13 @@ impl Localizer {
         out
     }
 
+    /// True when a cold start may run at `time_s` (none yet, or the last one at least
+    /// `cold_start_interval_s` ago).
+    fn cold_start_due(&self, time_s: f64) -> bool {
+        self.last_cold_start_s
+            .is_none_or(|t| (time_s - t).abs() >= self.options.cold_start_interval_s)
+    }
+
     /// Re-acquisition through the matcher, around the best prior available.
     #[allow(clippy::type_complexity)]
     fn reacquire(
@@ -871,17 +878,24 @@ impl Localizer {
                 ),
                 FixSource::Matcher,
             )
-        } else if let Some(area) = self.last_known.and_then(|(t0, p0, r0)| {
-            // No prediction and no satellite GPS (an outage of a few seconds: a canyon, a
-            // tunnel): the vehicle is within the distance it can have travelled since the
-            // last place known. A search there is a prior, far narrower than the whole map,
-            // tried on every frame while its radius stays below the cap.
-            let dt = (time_s - t0).abs();
-            let radius = r0 + MAX_TRAVEL_SPEED_M_S * dt;
-            (radius.is_finite() && radius <= MAX_LAST_KNOWN_RADIUS_M).then(|| {
-                SearchArea::around(&p0, radius, PRIOR_VERTICAL_HALF_RANGE_M + 0.1 * radius)
+        } else if let Some(area) = self
+            .last_known
+            // A cold start that is due goes first: a search around a wrong last place (a
+            // satellite position metres off, a failed fix) must not hold it off for the
+            // 11 s the radius takes to reach its cap.
+            .filter(|_| !(self.options.cold_start && self.cold_start_due(time_s)))
+            .and_then(|(t0, p0, r0)| {
+                // No prediction and no satellite GPS (an outage of a few seconds: a canyon, a
+                // tunnel): the vehicle is within the distance it can have travelled since the
+                // last place known. A search there is a prior, far narrower than the whole map,
+                // tried on every frame while its radius stays below the cap.
+                let dt = (time_s - t0).abs();
+                let radius = r0 + MAX_TRAVEL_SPEED_M_S * dt;
+                (radius.is_finite() && radius <= MAX_LAST_KNOWN_RADIUS_M).then(|| {
+                    SearchArea::around(&p0, radius, PRIOR_VERTICAL_HALF_RANGE_M + 0.1 * radius)
+                })
             })
-        }) {
+        {
             (area, FixSource::Matcher)
         } else if self.options.cold_start {
             // With a heading prior the search is pruned to the poses of that heading: it is

@@ -364,7 +364,8 @@ pub(crate) fn assignment_fits(
             return false;
         }
         let z = rays[k].direction.cross(&v).norm() / n / sigmas[k];
-        if !(z <= OUTLIER_SIGMAS) {
+        // NaN (a degenerate ray) fails too.
+        if z.is_nan() || z > OUTLIER_SIGMAS {
             return false;
         }
         chi2 += z * z;
