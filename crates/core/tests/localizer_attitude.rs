@@ -51,6 +51,9 @@ fn frames_with_an_imu_are_fixed_where_they_otherwise_wait_for_the_cold_start() {
                 });
                 let frame = Frame::from_detections(f.time_s, &detections, &map, None)
                     .with_attitude(attitude);
+                // No position prior at all: neither the last fix nor the place it was at
+                // (which a search around the last place known would use).
+                localizer.reset();
                 let start = std::time::Instant::now();
                 let fix = localizer.process(&frame);
                 let seconds = start.elapsed().as_secs_f64();
@@ -117,5 +120,55 @@ fn a_wrong_heading_prior_finds_no_wrong_fix() {
         let error =
             (e.world_from_rig.translation.vector - f.world_from_rig.translation.vector).norm();
         assert!(error < 0.5, "{fix:?}");
+    }
+}
+
+/// A few seconds without a prior (a canyon: satellite GPS lost, the motion model's horizon
+/// passed) and no cold start: the frames are searched around the last place known (the last
+/// satellite position), within the distance the vehicle can have travelled since, and fixed
+/// right. Before, they had `no_prior` until the cold start was due (issue #24 item 6: the
+/// short preset's canyon, frames 349–386, 3–10 surveyed lamps in view, not fixed).
+#[test]
+fn frames_after_an_outage_are_searched_around_the_last_place_known() {
+    let drive = small_drive();
+    let landmarks = drive.surveyed_landmarks().unwrap();
+    let map =
+        Arc::new(LandmarkMap::from_landmarks(&landmarks, Some(drive.scenario.origin)).unwrap());
+    let rig = Arc::new(drive.scenario.rig.clone());
+    let options = LocalizerOptions {
+        max_tracking_gap_s: 0.4,
+        cold_start: false,
+        ..LocalizerOptions::default()
+    };
+    let mut localizer = Localizer::new(rig, Arc::clone(&map), options).unwrap();
+    let frames: Vec<_> = drive.frames.iter().step_by(10).take(4).collect();
+    assert_eq!(frames.len(), 4, "{} frames", drive.frames.len());
+    // The first frame: no detections, only its satellite position (the true one plus 3 m).
+    let first = Frame {
+        time_s: frames[0].time_s,
+        observations: Vec::new(),
+        gnss: Some(vgps_core::localizer::GnssPosition {
+            position: map
+                .frame()
+                .try_to_geodetic(
+                    &(frames[0].world_from_rig.translation.vector + Vector3::new(3.0, 0.0, 0.0)),
+                )
+                .unwrap(),
+        }),
+        attitude: None,
+    };
+    assert_eq!(
+        localizer.process(&first).status,
+        LocalizerStatus::TooFewObservations
+    );
+    // Then frames 2 s apart, none with satellite GPS.
+    for f in &frames[1..] {
+        let detections: Vec<_> = f.detections.iter().map(|d| d.detection.clone()).collect();
+        let fix = localizer.process(&Frame::from_detections(f.time_s, &detections, &map, None));
+        assert_eq!(fix.status, LocalizerStatus::Ok, "{fix:?}");
+        let e = fix.estimate.as_ref().unwrap();
+        let error =
+            (e.world_from_rig.translation.vector - f.world_from_rig.translation.vector).norm();
+        assert!(error < 0.5, "{error} m: {fix:?}");
     }
 }
