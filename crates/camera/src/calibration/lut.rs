@@ -167,7 +167,7 @@ fn validate(params: &LutParams) -> Result<(usize, usize), String> {
     Ok((cols, rows))
 }
 
-#[inline(always)]
+#[inline]
 fn to_f64(b: &[f32; 3]) -> Vector3<f64> {
     Vector3::new(f64::from(b[0]), f64::from(b[1]), f64::from(b[2]))
 }
@@ -203,7 +203,7 @@ impl Axis {
 
     /// Cell index, fraction within the cell and 1 / cell width. The fraction is unclamped:
     /// outside the image it extrapolates the border cell.
-    #[inline(always)]
+    #[inline]
     fn locate(&self, coordinate: f64) -> (usize, f64, f64) {
         let a = coordinate + 0.5;
         let f = a * self.inv_step;
@@ -367,7 +367,7 @@ impl Lut {
 
     /// `true` when `pixel` lies in the image rectangle `[−½, W − ½] × [−½, H − ½]` (the
     /// same test as [`in_image_rectangle`], with the bounds precomputed).
-    #[inline(always)]
+    #[inline]
     fn contains(&self, pixel: &Pixel) -> bool {
         pixel.x >= -0.5
             && pixel.x <= self.u_axis.upper
@@ -376,7 +376,7 @@ impl Lut {
     }
 
     /// Interpolated (unnormalised) bearing only (the hot path of pixel → bearing).
-    #[inline(always)]
+    #[inline]
     fn interpolate_bearing(&self, pixel: &Pixel) -> Vector3<f64> {
         let (i, t, _) = self.u_axis.locate(pixel.x);
         let (j, r, _) = self.v_axis.locate(pixel.y);
@@ -639,11 +639,7 @@ impl CameraModel for Lut {
         self.contains(pixel)
     }
 
-    // Always inlined, with the helpers it calls: behind `Camera`'s dispatch the compiler
-    // otherwise keeps it (and then `interpolate_bearing`) a call, and the calls with their
-    // results returned through memory made `calibration/bearing/lut` about a fifth slower
-    // (docs/dev/journal.md, seventeenth session).
-    #[inline(always)]
+    #[inline]
     fn try_bearing(&self, pixel: &Pixel) -> Option<Vector3<f64>> {
         if !self.contains(pixel) {
             return None;
