@@ -6,7 +6,8 @@
 use nalgebra::Vector3;
 use std::sync::Arc;
 use vgps_core::localizer::{
-    AttitudePrior, Frame, LandmarkMap, Localizer, LocalizerOptions, LocalizerStatus,
+    AttitudePrior, Frame, LAST_KNOWN_SEARCH_INTERVAL_S, LandmarkMap, Localizer, LocalizerOptions,
+    LocalizerStatus,
 };
 use vgps_sim::simulate::{Preset, Scenario, SimulatedDrive, simulate};
 
@@ -171,4 +172,60 @@ fn frames_after_an_outage_are_searched_around_the_last_place_known() {
             (e.world_from_rig.translation.vector - f.world_from_rig.translation.vector).norm();
         assert!(error < 0.5, "{error} m: {fix:?}");
     }
+}
+
+#[test]
+fn searches_around_the_last_place_known_are_at_most_one_a_second() {
+    let drive = small_drive();
+    let landmarks = drive.surveyed_landmarks().unwrap();
+    let map =
+        Arc::new(LandmarkMap::from_landmarks(&landmarks, Some(drive.scenario.origin)).unwrap());
+    let rig = Arc::new(drive.scenario.rig.clone());
+    let options = LocalizerOptions {
+        cold_start: false,
+        ..LocalizerOptions::default()
+    };
+    let mut localizer = Localizer::new(rig, Arc::clone(&map), options).unwrap();
+    let frame = |k: usize, n: usize| {
+        let f = &drive.frames[k];
+        let detections: Vec<_> = f
+            .detections
+            .iter()
+            .take(n)
+            .map(|d| d.detection.clone())
+            .collect();
+        (
+            f.time_s,
+            Frame::from_detections(f.time_s, &detections, &map, None),
+        )
+    };
+    // The last place known: a satellite position (the true one) on a frame without
+    // detections; no fix, so no prediction for the frames after it.
+    let f0 = &drive.frames[0];
+    let first = Frame {
+        time_s: f0.time_s,
+        observations: Vec::new(),
+        gnss: Some(vgps_core::localizer::GnssPosition {
+            position: map
+                .frame()
+                .try_to_geodetic(&f0.world_from_rig.translation.vector)
+                .unwrap(),
+        }),
+        attitude: None,
+    };
+    localizer.process(&first);
+    // A search around it on too few detections to decide: no fix.
+    let (t1, few) = frame(1, 5);
+    let fix = localizer.process(&few);
+    assert_ne!(fix.status, LocalizerStatus::Ok, "{fix:?}");
+    // Every detection, less than the interval after that search: no search, no prior.
+    let (t2, too_soon) = frame(3, usize::MAX);
+    assert!(t2 - t1 < LAST_KNOWN_SEARCH_INTERVAL_S, "{t1} {t2}");
+    let fix = localizer.process(&too_soon);
+    assert_eq!(fix.status, LocalizerStatus::NoPrior, "{fix:?}");
+    // The interval after the search: searched and fixed.
+    let (t3, again) = frame(7, usize::MAX);
+    assert!(t3 - t1 >= LAST_KNOWN_SEARCH_INTERVAL_S, "{t1} {t3}");
+    let fix = localizer.process(&again);
+    assert_eq!(fix.status, LocalizerStatus::Ok, "{fix:?}");
 }
