@@ -51,42 +51,13 @@ fn main() {
         }
     }
     let mut detector = VertexDetector::default();
-    if let Some(x) = std::env::var("VERTEX_MIN_EXTENT_PX")
-        .ok()
-        .and_then(|x| x.parse().ok())
-    {
-        detector.config.min_edge_extent_px = x;
-    }
-    if let Some(x) = std::env::var("VERTEX_MIN_RESPONSE")
-        .ok()
-        .and_then(|x| x.parse().ok())
-    {
-        detector.config.min_response = x;
-    }
-    if let Some(x) = std::env::var("VERTEX_MIN_OPEN_SIDE_DN")
-        .ok()
-        .and_then(|x| x.parse().ok())
-    {
-        detector.config.min_open_side_dn = x;
-    }
-    if let Some(x) = std::env::var("VERTEX_MIN_ANGLE_DEG")
-        .ok()
-        .and_then(|x| x.parse().ok())
-    {
-        detector.config.min_angle_deg = x;
-    }
-    if let Some(x) = std::env::var("VERTEX_MIN_PEAK_SHARE")
-        .ok()
-        .and_then(|x| x.parse().ok())
-    {
-        detector.config.min_peak_share = x;
-    }
-    if let Some(x) = std::env::var("VERTEX_MAX_CANDIDATES")
-        .ok()
-        .and_then(|x| x.parse().ok())
-    {
-        detector.config.max_candidates = x;
-    }
+    let c = &mut detector.config;
+    env_override("VERTEX_MIN_EXTENT_PX", &mut c.min_edge_extent_px);
+    env_override("VERTEX_MIN_RESPONSE", &mut c.min_response);
+    env_override("VERTEX_MIN_OPEN_SIDE_DN", &mut c.min_open_side_dn);
+    env_override("VERTEX_MIN_ANGLE_DEG", &mut c.min_angle_deg);
+    env_override("VERTEX_MIN_PEAK_SHARE", &mut c.min_peak_share);
+    env_override("VERTEX_MAX_CANDIDATES", &mut c.max_candidates);
     // VERTEX_TABLE=PATH: one row per truth corner with its nearest candidate (any
     // response: run with a low VERTEX_MIN_RESPONSE to see the ones below the default),
     // the local contrast (p95 − p5 of the 15 × 15 px around it) and its fate.
@@ -242,5 +213,12 @@ fn main() {
     println!("by range bucket (m):");
     for ((b, k), n) in &by_range {
         println!("{b:4} {n:6}  {k}");
+    }
+}
+
+/// Sets `value` from the environment variable `name` when it is set and parses.
+fn env_override<T: std::str::FromStr>(name: &str, value: &mut T) {
+    if let Some(x) = std::env::var(name).ok().and_then(|x| x.parse().ok()) {
+        *value = x;
     }
 }
