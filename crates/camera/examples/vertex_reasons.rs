@@ -15,7 +15,7 @@ use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::Path;
 use vgps_camera::calibration::load;
-use vgps_camera::imaging::{DecodeLimits, Mask, VertexDetector, read_image};
+use vgps_camera::imaging::{DecodeLimits, Mask, VertexCandidate, VertexDetector, read_image};
 
 /// A truth corner: `(u, v, range_m)`.
 type TruthCorner = (f64, f64, f64);
@@ -115,14 +115,7 @@ fn main() {
             let explained = detector.explain(&image, Some(model), masks[cam].as_ref());
             if let Some(t) = table.as_mut() {
                 for &(u, v, r) in truths {
-                    let near = explained
-                        .iter()
-                        .filter(|c| (c.u as f64 - u).hypot(c.v as f64 - v) <= 3.0)
-                        .min_by(|a, b| {
-                            let da = (a.u as f64 - u).hypot(a.v as f64 - v);
-                            let db = (b.u as f64 - u).hypot(b.v as f64 - v);
-                            da.total_cmp(&db)
-                        });
+                    let near = nearest_within_3px(&explained, u, v);
                     let mut vals = Vec::new();
                     for dv in -7i64..=7 {
                         for du in -7i64..=7 {
@@ -178,14 +171,7 @@ fn main() {
                 let reason = if found {
                     "found".to_string()
                 } else {
-                    let near = explained
-                        .iter()
-                        .filter(|c| (c.u as f64 - u).hypot(c.v as f64 - v) <= 3.0)
-                        .min_by(|a, b| {
-                            let da = (a.u as f64 - u).hypot(a.v as f64 - v);
-                            let db = (b.u as f64 - u).hypot(b.v as f64 - v);
-                            da.total_cmp(&db)
-                        });
+                    let near = nearest_within_3px(&explained, u, v);
                     match near {
                         None => "no candidate within 3 px".to_string(),
                         Some(c) => match c.outcome {
@@ -221,4 +207,13 @@ fn env_override<T: std::str::FromStr>(name: &str, value: &mut T) {
     if let Some(x) = std::env::var(name).ok().and_then(|x| x.parse().ok()) {
         *value = x;
     }
+}
+
+/// The candidate nearest to `(u, v)` within 3 px, if any.
+fn nearest_within_3px(explained: &[VertexCandidate], u: f64, v: f64) -> Option<&VertexCandidate> {
+    let distance = |c: &VertexCandidate| (c.u as f64 - u).hypot(c.v as f64 - v);
+    explained
+        .iter()
+        .filter(|c| distance(c) <= 3.0)
+        .min_by(|a, b| distance(a).total_cmp(&distance(b)))
 }
