@@ -36,7 +36,7 @@ max_len() {
     ladybug_conf | mcap_read) echo 65536 ;;
     camera_mask | ros_cdr | raw_image) echo 32768 ;;
     nmea | ubx | sirf | png_decode | jpeg_decode | tiff_decode | bmp_decode | lut | nclt_table) echo 16384 ;;
-    native_json | nclt_gps | ladybug_ini | drive_tables | landmarks_csv | observations_csv | gpx | truth_formats | gis_landmarks | imu_csv | drive_json | rays_csv | nclt_calibration | import_tables) echo 8192 ;;
+    native_json | nclt_gps | ladybug_ini | drive_tables | landmarks_csv | observations_csv | gpx | truth_formats | gis_landmarks | building_footprints | imu_csv | drive_json | rays_csv | nclt_calibration | import_tables) echo 8192 ;;
     *) echo 4096 ;;
   esac
 }

@@ -1201,6 +1201,102 @@ fn rows() -> Vec<Row> {
             code: 2,
             stderr: &["{t}/l.geojson:1: field `ele`: feature 0 (id node/7): no ground height"],
         },
+        Row {
+            name: "landmarks footprints: unclosed, self-intersecting, negative-height and projected features skipped by name, the rest converted",
+            setup: |t| {
+                write(
+                    t,
+                    "b.geojson",
+                    r#"{"type":"FeatureCollection","features":[
+{"type":"Feature","id":"way/1","properties":{"height":12},"geometry":{"type":"Polygon","coordinates":[[[2.35,48.85],[2.3502,48.85],[2.3502,48.8501],[2.35,48.8501],[2.35,48.85]]]}},
+{"type":"Feature","id":"bow","properties":{"height":5},"geometry":{"type":"Polygon","coordinates":[[[2.36,48.85],[2.3601,48.8501],[2.3601,48.85],[2.36,48.8501],[2.36,48.85]]]}},
+{"type":"Feature","id":"open","properties":{"height":5},"geometry":{"type":"Polygon","coordinates":[[[2.37,48.85],[2.3701,48.85],[2.3701,48.8501],[2.37,48.8501]]]}},
+{"type":"Feature","id":"neg","properties":{"height":-4},"geometry":{"type":"Polygon","coordinates":[[[2.38,48.85],[2.3801,48.85],[2.3801,48.8501],[2.38,48.85]]]}},
+{"type":"Feature","id":"utm","properties":{"height":5},"geometry":{"type":"Polygon","coordinates":[[[452000,5411000],[452020,5411000],[452020,5411010],[452000,5411000]]]}}]}"#,
+                )
+            },
+            args: &[
+                "landmarks",
+                "footprints",
+                "{t}/b.geojson",
+                "--ground-height",
+                "35",
+                "--out",
+                "{t}/L.csv",
+            ],
+            code: 0,
+            stderr: &[
+                "{t}/b.geojson: feature 1 (id bow) skipped: the outer ring intersects itself",
+                "{t}/b.geojson: feature 2 (id open) skipped: the outer ring is not closed",
+                "{t}/b.geojson: feature 3 (id neg) skipped: height -4 is not positive",
+                "{t}/b.geojson: feature 4 (id utm) skipped: (452000, 5411000) is not WGS84",
+            ],
+        },
+        Row {
+            name: "landmarks footprints: an empty collection",
+            setup: |t| {
+                write(
+                    t,
+                    "b.geojson",
+                    r#"{"type":"FeatureCollection","features":[]}"#,
+                )
+            },
+            args: &[
+                "landmarks",
+                "footprints",
+                "{t}/b.geojson",
+                "--ground-height",
+                "35",
+                "--out",
+                "{t}/L.csv",
+            ],
+            code: 2,
+            stderr: &[
+                "{t}/b.geojson:1: field `features`: no building corner: the collection has no feature",
+            ],
+        },
+        Row {
+            name: "landmarks footprints: a crs member naming a projected CRS",
+            setup: |t| {
+                write(
+                    t,
+                    "b.geojson",
+                    r#"{"type":"FeatureCollection","crs":{"type":"name","properties":{"name":"EPSG:2263"}},"features":[]}"#,
+                )
+            },
+            args: &[
+                "landmarks",
+                "footprints",
+                "{t}/b.geojson",
+                "--ground-height",
+                "35",
+                "--out",
+                "{t}/L.csv",
+            ],
+            code: 2,
+            stderr: &["{t}/b.geojson:1: field `crs`", "EPSG:2263"],
+        },
+        Row {
+            name: "landmarks footprints: a building without any height and no --ground-height",
+            setup: |t| {
+                write(
+                    t,
+                    "b.geojson",
+                    r#"{"type":"Feature","id":"way/9","properties":{"height":9},"geometry":{"type":"Polygon","coordinates":[[[2.35,48.85],[2.3502,48.85],[2.3502,48.8501],[2.35,48.85]]]}}"#,
+                )
+            },
+            args: &[
+                "landmarks",
+                "footprints",
+                "{t}/b.geojson",
+                "--out",
+                "{t}/L.csv",
+            ],
+            code: 2,
+            stderr: &[
+                "{t}/b.geojson:1: field `features`: no building corner: {t}/b.geojson: feature 0 (id way/9) skipped: no ground height",
+            ],
+        },
         // ---- vgps replay ----
         Row {
             name: "replay: no drive.json",

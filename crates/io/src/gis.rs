@@ -189,7 +189,7 @@ fn landmark(
 
 /// A number from a GeoJSON property: a JSON number or a string such as OSM's `"8"` or
 /// `"8 m"`.
-fn number(value: Option<&serde_json::Value>) -> Result<Option<f64>, String> {
+pub(crate) fn number(value: Option<&serde_json::Value>) -> Result<Option<f64>, String> {
     let parsed = match value {
         None | Some(serde_json::Value::Null) => return Ok(None),
         Some(serde_json::Value::Number(n)) => n.as_f64(),
@@ -208,7 +208,7 @@ fn number(value: Option<&serde_json::Value>) -> Result<Option<f64>, String> {
 }
 
 /// CRS names that are WGS84 longitude, latitude.
-fn is_wgs84(name: &str) -> bool {
+pub(crate) fn is_wgs84(name: &str) -> bool {
     let n = name.to_ascii_uppercase();
     n.ends_with("CRS84") || n.ends_with("4326") || n.ends_with("CRS:84")
 }

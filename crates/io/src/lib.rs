@@ -38,6 +38,7 @@
 //! ```
 
 mod atomic;
+pub mod footprints;
 pub mod gis;
 mod landmarks;
 mod observations;

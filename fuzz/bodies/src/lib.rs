@@ -565,6 +565,25 @@ pub fn gis_landmarks(data: &[u8]) {
     }
 }
 
+/// Target `building_footprints`: [`vgps_io::footprints::corners_from_footprints`] (a ground
+/// height given, ellipsoidal: the geoid is fuzzed by `gis_landmarks`), ground corners on.
+pub fn building_footprints(data: &[u8]) {
+    let options = vgps_io::footprints::FootprintOptions {
+        ground_height_m: Some(10.0),
+        reference: vgps_io::gis::GroundReference::Ellipsoid,
+        ground_corners: true,
+        ..Default::default()
+    };
+    let path = std::path::Path::new("fuzz.geojson");
+    if let Ok(read) = vgps_io::footprints::corners_from_footprints(path, &text(data), &options) {
+        assert!(!read.landmarks.is_empty());
+        for l in &read.landmarks {
+            assert!(l.lat_deg.abs() <= 90.0 && l.lon_deg.abs() <= 180.0 && l.alt_m.is_finite());
+            assert!(l.sigma_m.is_some_and(|s| s.is_finite() && s >= 0.0));
+        }
+    }
+}
+
 /// Target `truth_formats`: [`vgps_replay::drive::truth_formats::read_truth`] for three
 /// frames (vgps, INS, NCLT and TUM truth).
 pub fn truth_formats(data: &[u8]) {
@@ -959,6 +978,7 @@ pub const TARGETS: &[Target] = &[
     ("sirf", sirf),
     ("imu_csv", imu_csv),
     ("gis_landmarks", gis_landmarks),
+    ("building_footprints", building_footprints),
     ("truth_formats", truth_formats),
     ("ros_cdr", ros_cdr),
     ("mcap_read", mcap_read),
