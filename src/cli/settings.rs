@@ -511,15 +511,12 @@ mod tests {
         else {
             panic!("not landmarks")
         };
-        assert_eq!(s.options.ground_height_m, Some(-3.5));
-        assert_eq!(
-            s.options.reference,
-            vgps_io::gis::GroundReference::Ellipsoid
-        );
-        assert_eq!(
-            (s.options.default_lamp_height_m, s.options.sigma_m),
-            (6.0, 0.5)
-        );
+        let crate::cli::landmarks::LandmarksJob::Inventory(options) = s.job else {
+            panic!("`landmarks import` is not an inventory job")
+        };
+        assert_eq!(options.ground_height_m, Some(-3.5));
+        assert_eq!(options.reference, vgps_io::gis::GroundReference::Ellipsoid);
+        assert_eq!((options.default_lamp_height_m, options.sigma_m), (6.0, 0.5));
         for (args, message) in [
             (
                 &["--sigma=-1"][..],
