@@ -6,7 +6,8 @@
 use nalgebra::Vector3;
 use std::sync::Arc;
 use vgps_core::localizer::{
-    AttitudePrior, Frame, LandmarkMap, Localizer, LocalizerOptions, LocalizerStatus,
+    AttitudePrior, Frame, LAST_KNOWN_SEARCH_INTERVAL_S, LandmarkMap, Localizer, LocalizerOptions,
+    LocalizerStatus,
 };
 use vgps_sim::simulate::{Preset, Scenario, SimulatedDrive, simulate};
 
@@ -51,6 +52,9 @@ fn frames_with_an_imu_are_fixed_where_they_otherwise_wait_for_the_cold_start() {
                 });
                 let frame = Frame::from_detections(f.time_s, &detections, &map, None)
                     .with_attitude(attitude);
+                // No position prior at all: neither the last fix nor the place it was at
+                // (which a search around the last place known would use).
+                localizer.reset();
                 let start = std::time::Instant::now();
                 let fix = localizer.process(&frame);
                 let seconds = start.elapsed().as_secs_f64();
@@ -118,4 +122,110 @@ fn a_wrong_heading_prior_finds_no_wrong_fix() {
             (e.world_from_rig.translation.vector - f.world_from_rig.translation.vector).norm();
         assert!(error < 0.5, "{fix:?}");
     }
+}
+
+/// A few seconds without a prior (a canyon: satellite GPS lost, the motion model's horizon
+/// passed) and no cold start: the frames are searched around the last place known (the last
+/// satellite position), within the distance the vehicle can have travelled since, and fixed
+/// right. Before, they had `no_prior` until the cold start was due (issue #24 item 6: the
+/// short preset's canyon, frames 349–386, 3–10 surveyed lamps in view, not fixed).
+#[test]
+fn frames_after_an_outage_are_searched_around_the_last_place_known() {
+    let drive = small_drive();
+    let landmarks = drive.surveyed_landmarks().unwrap();
+    let map =
+        Arc::new(LandmarkMap::from_landmarks(&landmarks, Some(drive.scenario.origin)).unwrap());
+    let rig = Arc::new(drive.scenario.rig.clone());
+    let options = LocalizerOptions {
+        max_tracking_gap_s: 0.4,
+        cold_start: false,
+        ..LocalizerOptions::default()
+    };
+    let mut localizer = Localizer::new(rig, Arc::clone(&map), options).unwrap();
+    let frames: Vec<_> = drive.frames.iter().step_by(10).take(4).collect();
+    assert_eq!(frames.len(), 4, "{} frames", drive.frames.len());
+    // The first frame: no detections, only its satellite position (the true one plus 3 m).
+    let first = Frame {
+        time_s: frames[0].time_s,
+        observations: Vec::new(),
+        gnss: Some(vgps_core::localizer::GnssPosition {
+            position: map
+                .frame()
+                .try_to_geodetic(
+                    &(frames[0].world_from_rig.translation.vector + Vector3::new(3.0, 0.0, 0.0)),
+                )
+                .unwrap(),
+        }),
+        attitude: None,
+    };
+    assert_eq!(
+        localizer.process(&first).status,
+        LocalizerStatus::TooFewObservations
+    );
+    // Then frames 2 s apart, none with satellite GPS.
+    for f in &frames[1..] {
+        let detections: Vec<_> = f.detections.iter().map(|d| d.detection.clone()).collect();
+        let fix = localizer.process(&Frame::from_detections(f.time_s, &detections, &map, None));
+        assert_eq!(fix.status, LocalizerStatus::Ok, "{fix:?}");
+        let e = fix.estimate.as_ref().unwrap();
+        let error =
+            (e.world_from_rig.translation.vector - f.world_from_rig.translation.vector).norm();
+        assert!(error < 0.5, "{error} m: {fix:?}");
+    }
+}
+
+#[test]
+fn searches_around_the_last_place_known_are_at_most_one_a_second() {
+    let drive = small_drive();
+    let landmarks = drive.surveyed_landmarks().unwrap();
+    let map =
+        Arc::new(LandmarkMap::from_landmarks(&landmarks, Some(drive.scenario.origin)).unwrap());
+    let rig = Arc::new(drive.scenario.rig.clone());
+    let options = LocalizerOptions {
+        cold_start: false,
+        ..LocalizerOptions::default()
+    };
+    let mut localizer = Localizer::new(rig, Arc::clone(&map), options).unwrap();
+    let frame = |k: usize, n: usize| {
+        let f = &drive.frames[k];
+        let detections: Vec<_> = f
+            .detections
+            .iter()
+            .take(n)
+            .map(|d| d.detection.clone())
+            .collect();
+        (
+            f.time_s,
+            Frame::from_detections(f.time_s, &detections, &map, None),
+        )
+    };
+    // The last place known: a satellite position (the true one) on a frame without
+    // detections; no fix, so no prediction for the frames after it.
+    let f0 = &drive.frames[0];
+    let first = Frame {
+        time_s: f0.time_s,
+        observations: Vec::new(),
+        gnss: Some(vgps_core::localizer::GnssPosition {
+            position: map
+                .frame()
+                .try_to_geodetic(&f0.world_from_rig.translation.vector)
+                .unwrap(),
+        }),
+        attitude: None,
+    };
+    localizer.process(&first);
+    // A search around it on too few detections to decide: no fix.
+    let (t1, few) = frame(1, 5);
+    let fix = localizer.process(&few);
+    assert_ne!(fix.status, LocalizerStatus::Ok, "{fix:?}");
+    // Every detection, less than the interval after that search: no search, no prior.
+    let (t2, too_soon) = frame(3, usize::MAX);
+    assert!(t2 - t1 < LAST_KNOWN_SEARCH_INTERVAL_S, "{t1} {t2}");
+    let fix = localizer.process(&too_soon);
+    assert_eq!(fix.status, LocalizerStatus::NoPrior, "{fix:?}");
+    // The interval after the search: searched and fixed.
+    let (t3, again) = frame(7, usize::MAX);
+    assert!(t3 - t1 >= LAST_KNOWN_SEARCH_INTERVAL_S, "{t1} {t3}");
+    let fix = localizer.process(&again);
+    assert_eq!(fix.status, LocalizerStatus::Ok, "{fix:?}");
 }

@@ -319,6 +319,60 @@ pub(crate) fn distinct_associated_points(
     (surveyed, kept.len())
 }
 
+/// True when the association set `assignment` fits one pose: refined from `pose` (as
+/// [`track`] refines), every association's normalised residual is within
+/// [`OUTLIER_SIGMAS`] and their mean square within `max_mean_chi2`. Used to test a rival
+/// association set (one observation given another landmark): a rival the geometry refutes
+/// is no alternative to the fix.
+pub(crate) fn assignment_fits(
+    pose: &Pose,
+    observations: &[ObsRay],
+    candidates: &[Candidate],
+    assignment: &[Option<usize>],
+    max_mean_chi2: f64,
+) -> bool {
+    let mut rays = Vec::new();
+    let mut points = Vec::new();
+    let mut sigmas = Vec::new();
+    for (o, a) in observations.iter().zip(assignment) {
+        let Some(c) = a.and_then(|ci| candidates.get(ci)) else {
+            continue;
+        };
+        let range = (c.position - pose.translation.vector).norm().max(1.0);
+        rays.push(o.ray);
+        points.push(c.position);
+        sigmas.push(effective_bearing_sigma(o.sigma_rad, c.sigma_m, range));
+    }
+    if rays.len() < 4 {
+        // Three associations fit some pose exactly: nothing refutes them.
+        return true;
+    }
+    let options = RefineOptions {
+        loss: RobustLoss::None,
+        accept_unconverged: true,
+        ..RefineOptions::default()
+    };
+    let Ok(r) = refine_pose_with_sigmas(pose, &rays, &points, &sigmas, &options) else {
+        return false;
+    };
+    let rig_from_world = r.world_from_rig.inverse();
+    let mut chi2 = 0.0;
+    for k in 0..rays.len() {
+        let v = (rig_from_world * nalgebra::Point3::from(points[k])).coords - rays[k].origin;
+        let n = v.norm().max(f64::EPSILON);
+        if rays[k].direction.dot(&v) <= 0.0 {
+            return false;
+        }
+        let z = rays[k].direction.cross(&v).norm() / n / sigmas[k];
+        // NaN (a degenerate ray) fails too.
+        if z.is_nan() || z > OUTLIER_SIGMAS {
+            return false;
+        }
+        chi2 += z * z;
+    }
+    chi2 / rays.len() as f64 <= max_mean_chi2
+}
+
 /// Tracks from a pose guess: associate, refine, drop outliers, re-associate with the
 /// refined pose. `None` when fewer than `min_correspondences` associations survive or the
 /// refinement fails.
