@@ -12,7 +12,7 @@
 //!   radiance. A lamp whose peak saturates also gets a **bloom**: a wide, dim Gaussian of
 //!   [`NightOptions::bloom_fraction`] of its flux, centred on it.
 //! - **Wet-road reflections**: each lamp mirrored about the road plane `z = 0`, drawn where
-//!   the line of sight to the mirror image meets the road ([`Ground::Road`] or a lane
+//!   the line of sight to the mirror image meets the road (the roadway or a lane
 //!   mark) and the pixel sees that road point; [`NightOptions::reflection_gain`] of the
 //!   lamp's intensity, stretched along the image's vertical direction at that point by
 //!   [`NightOptions::reflection_stretch`].

@@ -74,7 +74,7 @@ pub struct DayOptions {
     /// Sky light reflected by an unlit window (DN).
     pub glass_reflection_dn: f64,
     /// Share of the windows that are lit from inside (0–1; the night scene): which ones is
-    /// a hash of the building, face, floor and column ([`window_light`]).
+    /// a hash of the building, face, floor and column.
     pub lit_window_share: f64,
     /// Radiance range of a lit window (DN), drawn per window from the same hash.
     pub lit_window_dn: (f64, f64),
