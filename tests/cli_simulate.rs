@@ -203,6 +203,7 @@ fn bad_arguments_exit_2() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path().to_str().unwrap();
     for args in [
+        vec!["simulate", "--out", d, "--night-scene", "bright"],
         vec!["simulate", "--out", d, "--origin", "91,0"],
         vec!["simulate", "--out", d, "--origin", "abc"],
         vec!["simulate", "--out", d, "--length-m", "-5"],
@@ -216,4 +217,40 @@ fn bad_arguments_exit_2() {
             String::from_utf8_lossy(&out.stderr)
         );
     }
+}
+
+#[test]
+fn realistic_night_images_and_their_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = vgps(&[
+        "simulate",
+        "--preset",
+        "short",
+        "--length-m",
+        "6",
+        "--images",
+        "--night-scene",
+        "realistic",
+        "--jpeg-quality",
+        "90",
+        "--quiet",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains(" lit windows, "), "{text}");
+    let truth = read_csv(&dir.path().join("images_truth.csv"));
+    let kinds: BTreeSet<&str> = truth.iter().map(|r| r["kind"].as_str()).collect();
+    assert!(
+        kinds.contains("lamp") && kinds.contains("window"),
+        "{kinds:?}"
+    );
+    assert!(!kinds.contains("clutter") && !kinds.contains("transient"));
+    let frames = read_csv(&dir.path().join("frames.csv"));
+    assert!(frames[0]["image_0"].ends_with(".jpg"), "{:?}", frames[0]);
 }

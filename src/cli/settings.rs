@@ -81,6 +81,8 @@ pub struct SimulateSettings {
     pub time_of_day: super::simulate::TimeOfDayArg,
     /// JPEG quality of the images (PNG when `None`).
     pub jpeg_quality: Option<u8>,
+    /// Which night renderer (flat or realistic).
+    pub night_scene: super::simulate::NightSceneArg,
     /// Threads rendering and encoding the images (at least 1).
     pub threads: usize,
     /// No progress bar.
@@ -279,6 +281,7 @@ impl From<SimulateArgs> for SimulateSettings {
             images: a.images,
             time_of_day: a.time_of_day,
             jpeg_quality: a.jpeg_quality,
+            night_scene: a.night_scene,
             threads: thread_count(a.threads),
             quiet: a.quiet,
         }

@@ -24,6 +24,16 @@ pub enum TimeOfDayArg {
     Day,
 }
 
+/// The night renderers of `--night-scene`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum NightSceneArg {
+    /// Lamps and clutter spots on a flat dark background (fast).
+    Flat,
+    /// The city's buildings at night: sky glow, lit windows, car head- and taillights,
+    /// wet-road reflections, bloom, vignetting.
+    Realistic,
+}
+
 /// Arguments of `vgps simulate`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct SimulateArgs {
@@ -53,6 +63,11 @@ pub struct SimulateArgs {
     /// the drive's time and place; the truth is the visible corner landmarks).
     #[arg(long, value_enum, default_value = "night")]
     pub time_of_day: TimeOfDayArg,
+    /// Which renderer draws night images: `flat` (lamps and clutter spots on a dark
+    /// background) or `realistic` (the city's buildings at night with lit windows, car
+    /// lights, wet-road reflections, bloom and vignetting; its truth names each spot).
+    #[arg(long, value_enum, default_value = "flat")]
+    pub night_scene: NightSceneArg,
     /// Write the images as JPEG at this quality (1–100) instead of PNG.
     #[arg(long, value_parser = clap::value_parser!(u8).range(1..=100))]
     pub jpeg_quality: Option<u8>,
@@ -133,7 +148,7 @@ pub fn run(settings: &SimulateSettings, out: &mut dyn Write) -> Result<(), CliEr
     if let Some(s) = images {
         writeln!(
             out,
-            "{}: {} images, {:.1} MB ({} lamp, {} transient, {} clutter spots, {} corners)",
+            "{}: {} images, {:.1} MB ({} lamp, {} transient, {} clutter spots, {} corners{})",
             settings
                 .out
                 .join(vgps_sim::simulate::images::IMAGES_DIR)
@@ -143,7 +158,15 @@ pub fn run(settings: &SimulateSettings, out: &mut dyn Write) -> Result<(), CliEr
             s.lamps,
             s.transients,
             s.clutter,
-            s.corners
+            s.corners,
+            if settings.night_scene == NightSceneArg::Realistic {
+                format!(
+                    "; {} lit windows, {} car lights, {} reflections",
+                    s.windows, s.car_lights, s.reflections
+                )
+            } else {
+                String::new()
+            }
         )?;
     }
     Ok(())
@@ -180,6 +203,10 @@ fn write_images(
                 TimeOfDayArg::Day => vgps_sim::simulate::images::TimeOfDay::Day,
             },
             jpeg_quality: settings.jpeg_quality,
+            night_scene: match settings.night_scene {
+                NightSceneArg::Flat => vgps_sim::simulate::images::NightScene::Flat,
+                NightSceneArg::Realistic => vgps_sim::simulate::images::NightScene::Realistic,
+            },
             ..vgps_sim::simulate::images::ImageOptions::default()
         },
         threads,

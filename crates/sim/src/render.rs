@@ -230,7 +230,8 @@ impl Renderer {
         RenderedFrame { image, spots }
     }
 
-    fn lamp_blob(&self, camera: &Camera, light: &LightSource) -> Option<Blob> {
+    /// The pixel blob of `light` (see the module's model); `None` when it is not drawn.
+    pub(crate) fn lamp_blob(&self, camera: &Camera, light: &LightSource) -> Option<Blob> {
         let p = light.point_in_camera;
         let range = p.norm();
         let valid_range = range >= MIN_LAMP_RANGE_M && range.is_finite();
@@ -300,21 +301,35 @@ pub fn render_camera(
 }
 
 /// A Gaussian blob in pixel space.
-struct Blob {
-    centre: Vector2<f64>,
+#[derive(Clone, Debug)]
+pub(crate) struct Blob {
+    /// Centre (pixels).
+    pub(crate) centre: Vector2<f64>,
+    /// Covariance (px²).
+    pub(crate) covariance: Matrix2<f64>,
     /// Inverse covariance entries (a, b, c): q = a du² + 2 b du dv + c dv².
     inverse: (f64, f64, f64),
     half_u: f64,
     half_v: f64,
-    peak: f64,
-    flux: f64,
+    /// Peak signal (DN).
+    pub(crate) peak: f64,
+    /// Total signal (DN).
+    pub(crate) flux: f64,
     sigma_major: f64,
     sigma_minor: f64,
-    range: f64,
+    /// Range of its light (metres; 0 for a spot without one).
+    pub(crate) range: f64,
 }
 
 impl Blob {
-    fn new(centre: Vector2<f64>, covariance: Matrix2<f64>, flux: f64, range: f64) -> Option<Self> {
+    /// A blob; `None` for a covariance that is not positive definite, a non-finite centre or
+    /// a non-positive flux.
+    pub(crate) fn new(
+        centre: Vector2<f64>,
+        covariance: Matrix2<f64>,
+        flux: f64,
+        range: f64,
+    ) -> Option<Self> {
         let det = covariance.determinant();
         if !(det > 0.0) || !centre.iter().all(|x| x.is_finite()) || !(flux > 0.0) {
             return None;
@@ -328,6 +343,7 @@ impl Blob {
         let spread = (0.25 * (suu - svv).powi(2) + suv * suv).sqrt();
         Some(Self {
             centre,
+            covariance,
             inverse: (svv / det, -suv / det, suu / det),
             half_u: (k * suu.sqrt()).min(MAX_BLOB_HALF_SIZE_PX),
             half_v: (k * svv.sqrt()).min(MAX_BLOB_HALF_SIZE_PX),
@@ -337,6 +353,68 @@ impl Blob {
             sigma_minor: (half_mean - spread).max(0.0).sqrt(),
             range,
         })
+    }
+}
+
+impl Blob {
+    /// The pixel window drawn (columns `u0..=u1`, rows `v0..=v1`; `None` when it misses the
+    /// image) and whether the image border cut it.
+    fn window(&self, width: usize, height: usize) -> (Option<(usize, usize, usize, usize)>, bool) {
+        let (cu, cv) = (self.centre.x, self.centre.y);
+        let (w, h) = (width as f64, height as f64);
+        let u0 = (cu - self.half_u).ceil();
+        let u1 = (cu + self.half_u).floor();
+        let v0 = (cv - self.half_v).ceil();
+        let v1 = (cv + self.half_v).floor();
+        let clipped = u0 < 0.0 || v0 < 0.0 || u1 > w - 1.0 || v1 > h - 1.0;
+        let (u0, u1) = (u0.max(0.0), u1.min(w - 1.0));
+        let (v0, v1) = (v0.max(0.0), v1.min(h - 1.0));
+        let inside = u0 <= u1 && v0 <= v1;
+        let window = inside.then_some((u0 as usize, u1 as usize, v0 as usize, v1 as usize));
+        (window, clipped)
+    }
+
+    /// The noiseless signal (DN) at the pixel centre `(col, row)`.
+    fn signal(&self, col: usize, row: usize) -> f64 {
+        let (du, dv) = (col as f64 - self.centre.x, row as f64 - self.centre.y);
+        let (a, b, c) = self.inverse;
+        let q = a * du * du + 2.0 * b * du * dv + c * dv * dv;
+        self.peak * (-0.5 * q).exp()
+    }
+
+    /// Adds the blob's noiseless signal to a `width × height` radiance buffer (the realistic
+    /// night renderer adds the sensor's noise to the sum); returns whether the border cut it.
+    pub(crate) fn add_to(&self, radiance: &mut [f32], width: usize, height: usize) -> bool {
+        let (window, clipped) = self.window(width, height);
+        if let Some((u0, u1, v0, v1)) = window
+            && radiance.len() >= width * height
+        {
+            for row in v0..=v1 {
+                let line = &mut radiance[row * width..(row + 1) * width];
+                for (col, p) in line.iter_mut().enumerate().take(u1 + 1).skip(u0) {
+                    let s = self.signal(col, row);
+                    if s >= MIN_DRAWN_SIGNAL_DN {
+                        *p += s as f32;
+                    }
+                }
+            }
+        }
+        clipped
+    }
+
+    /// The truth row of the blob.
+    pub(crate) fn spot(&self, kind: SpotKind, range: Option<f64>, clipped: bool) -> RenderedSpot {
+        RenderedSpot {
+            kind,
+            u: self.centre.x,
+            v: self.centre.y,
+            sigma_major_px: self.sigma_major,
+            sigma_minor_px: self.sigma_minor,
+            flux_dn: self.flux,
+            peak_dn: self.peak,
+            range_m: range.filter(|_| self.range > 0.0),
+            clipped_by_border: clipped,
+        }
     }
 }
 
@@ -351,30 +429,14 @@ struct Exposure<'a> {
 impl Exposure<'_> {
     fn draw(&mut self, blob: &Blob, kind: SpotKind, range: Option<f64>) -> RenderedSpot {
         let (cu, cv) = (blob.centre.x, blob.centre.y);
-        let (w, h) = (self.width as f64, self.height as f64);
-        let u0 = (cu - blob.half_u).ceil();
-        let u1 = (cu + blob.half_u).floor();
-        let v0 = (cv - blob.half_v).ceil();
-        let v1 = (cv + blob.half_v).floor();
-        let clipped_by_border = u0 < 0.0 || v0 < 0.0 || u1 > w - 1.0 || v1 > h - 1.0;
-        let (u0, u1) = (u0.max(0.0), u1.min(w - 1.0));
-        let (v0, v1) = (v0.max(0.0), v1.min(h - 1.0));
-        let (a, b, c) = blob.inverse;
+        let (window, clipped_by_border) = blob.window(self.width, self.height);
         let shot = self.gain > 0.0;
         let inv_gain = if shot { 1.0 / self.gain } else { 0.0 };
-        if u0 <= u1 && v0 <= v1 {
-            for row in v0 as usize..=v1 as usize {
-                let dv = row as f64 - cv;
+        if let Some((u0, u1, v0, v1)) = window {
+            for row in v0..=v1 {
                 let line = &mut self.pixels[row * self.width..(row + 1) * self.width];
-                for (col, p) in line
-                    .iter_mut()
-                    .enumerate()
-                    .take(u1 as usize + 1)
-                    .skip(u0 as usize)
-                {
-                    let du = col as f64 - cu;
-                    let q = a * du * du + 2.0 * b * du * dv + c * dv * dv;
-                    let s = blob.peak * (-0.5 * q).exp();
+                for (col, p) in line.iter_mut().enumerate().take(u1 + 1).skip(u0) {
+                    let s = blob.signal(col, row);
                     if s < MIN_DRAWN_SIGNAL_DN {
                         continue;
                     }
@@ -391,17 +453,7 @@ impl Exposure<'_> {
                 }
             }
         }
-        RenderedSpot {
-            kind,
-            u: cu,
-            v: cv,
-            sigma_major_px: blob.sigma_major,
-            sigma_minor_px: blob.sigma_minor,
-            flux_dn: blob.flux,
-            peak_dn: blob.peak,
-            range_m: range.filter(|_| blob.range > 0.0),
-            clipped_by_border,
-        }
+        blob.spot(kind, range, clipped_by_border)
     }
 }
 

@@ -71,6 +71,13 @@ pub struct DayOptions {
     pub supersampling: usize,
     /// Objects and corners farther than this are not drawn (metres).
     pub max_range_m: f64,
+    /// Sky light reflected by an unlit window (DN).
+    pub glass_reflection_dn: f64,
+    /// Share of the windows that are lit from inside (0–1; the night scene): which ones is
+    /// a hash of the building, face, floor and column.
+    pub lit_window_share: f64,
+    /// Radiance range of a lit window (DN), drawn per window from the same hash.
+    pub lit_window_dn: (f64, f64),
 }
 
 impl Default for DayOptions {
@@ -85,6 +92,9 @@ impl Default for DayOptions {
             read_noise_dn: 1.5,
             supersampling: 4,
             max_range_m: 150.0,
+            glass_reflection_dn: GLASS_REFLECTION_DN,
+            lit_window_share: 0.0,
+            lit_window_dn: (60.0, 160.0),
         }
     }
 }
@@ -226,12 +236,14 @@ impl DayRenderer {
         &self.options
     }
 
+    /// The rig.
+    pub fn rig(&self) -> &Rig {
+        &self.rig
+    }
+
     /// Renders camera `camera` of the rig at `world_from_rig` in `scene`, lit by the sun in
     /// the ENU direction `sun` (unit; below the horizon: diffuse light only), deterministic
     /// for `seed`. `None` for a camera index outside the rig.
-    ///
-    /// Long (about 180 lines) for a reason: the per-tile ray loop shares its candidate
-    /// lists, shading and anti-aliasing state in one hot body (the renderer's time is here).
     pub fn render(
         &self,
         scene: &DayScene,
@@ -240,6 +252,36 @@ impl DayRenderer {
         sun: &Vector3<f64>,
         seed: u64,
     ) -> Option<DayFrame> {
+        let traced = self.trace(scene, world_from_rig, camera, sun)?;
+        let o = &self.options;
+        let pixels = expose(
+            &traced.radiance,
+            &traced.ids,
+            seed,
+            o.gain_e_per_dn,
+            o.read_noise_dn,
+        );
+        let image = GrayImage::from_raw(traced.width as u32, traced.height as u32, pixels)
+            .unwrap_or_else(|| unreachable!("the buffer has width × height bytes"));
+        Some(DayFrame {
+            image,
+            corners: traced.corners,
+        })
+    }
+
+    /// The noiseless radiance of camera `camera` (after the PSF), with each pixel's surface
+    /// id and depth and the visible corners: [`DayRenderer::render`] before the sensor, and
+    /// the background of the realistic night renderer ([`crate::night`]).
+    ///
+    /// Long (about 170 lines) for a reason: the per-tile ray loop shares its candidate
+    /// lists, shading and anti-aliasing state in one hot body (the renderer's time is here).
+    pub(crate) fn trace(
+        &self,
+        scene: &DayScene,
+        world_from_rig: &Pose,
+        camera: usize,
+        sun: &Vector3<f64>,
+    ) -> Option<Traced> {
         let rig_camera = self.rig.cameras().get(camera)?;
         let table = self.tables.get(camera)?;
         let world_from_camera = world_from_rig * rig_camera.rig_from_camera;
@@ -304,6 +346,7 @@ impl DayRenderer {
         let (w, h) = (table.width, table.height);
         let mut ids = vec![u32::MAX; w * h];
         let mut radiance = vec![0f32; w * h];
+        let mut depth = vec![f32::INFINITY; w * h];
         for v in 0..h {
             for u in 0..w {
                 let i = v * w + u;
@@ -313,9 +356,10 @@ impl DayRenderer {
                 }
                 let d = enu_from_camera * Vector3::new(b[0] as f64, b[1] as f64, b[2] as f64);
                 let cands = &tile_objects[(v / TILE_PX) * table.tiles_x + u / TILE_PX];
-                let (id, value) = shader.sample(&d, cands);
+                let (id, value, t) = shader.sample(&d, cands);
                 ids[i] = id;
                 radiance[i] = value as f32;
+                depth[i] = t as f32;
             }
         }
         // Anti-aliasing of the pixels on a surface boundary.
@@ -353,28 +397,7 @@ impl DayRenderer {
                 }
             }
         }
-        let blurred = gaussian_blur(&radiance, w, h, o.psf_sigma_px);
-        let inv_gain = if o.gain_e_per_dn > 0.0 {
-            1.0 / o.gain_e_per_dn
-        } else {
-            0.0
-        };
-        let read2 = o.read_noise_dn * o.read_noise_dn;
-        let pixels: Vec<u8> = blurred
-            .iter()
-            .enumerate()
-            .map(|(i, &s)| {
-                if ids[i] == u32::MAX {
-                    return 0;
-                }
-                let s = s.max(0.0) as f64;
-                let hsh = splitmix64(seed ^ splitmix64(i as u64));
-                let value = s + (s * inv_gain + read2).sqrt() * approx_normal(hsh);
-                value.round().clamp(0.0, 255.0) as u8
-            })
-            .collect();
-        let image = GrayImage::from_raw(w as u32, h as u32, pixels)
-            .unwrap_or_else(|| unreachable!("the buffer has width × height bytes"));
+        let radiance = gaussian_blur(&radiance, w, h, o.psf_sigma_px);
         // The visible corners.
         let camera_from_world = world_from_camera.inverse();
         let mut corners = Vec::new();
@@ -410,8 +433,69 @@ impl DayRenderer {
                 near_border,
             });
         }
-        Some(DayFrame { image, corners })
+        Some(Traced {
+            radiance,
+            ids,
+            depth,
+            width: w,
+            height: h,
+            world_from_camera,
+            corners,
+        })
     }
+}
+
+/// The output of [`DayRenderer::trace`].
+pub(crate) struct Traced {
+    /// Radiance of every pixel after the PSF (DN, noiseless).
+    pub(crate) radiance: Vec<f32>,
+    /// The surface id of every pixel (`u32::MAX` outside the camera model's domain).
+    pub(crate) ids: Vec<u32>,
+    /// Distance to the surface seen by every pixel centre (metres; infinite for the sky).
+    pub(crate) depth: Vec<f32>,
+    /// Image width (pixels).
+    pub(crate) width: usize,
+    /// Image height (pixels).
+    pub(crate) height: usize,
+    /// The camera's pose in the world (ENU).
+    pub(crate) world_from_camera: Pose,
+    /// The visible corner landmarks.
+    pub(crate) corners: Vec<CornerTruth>,
+}
+
+/// The sensor: shot noise of variance `s / gain` (none for `gain ≤ 0`) and read noise of
+/// `read_noise_dn`, drawn from a counter-based hash of `(seed, pixel)`, rounded and clamped
+/// to 8 bits; pixels whose id is `u32::MAX` (outside the model's domain) are 0.
+pub(crate) fn expose(
+    radiance: &[f32],
+    ids: &[u32],
+    seed: u64,
+    gain_e_per_dn: f64,
+    read_noise_dn: f64,
+) -> Vec<u8> {
+    let inv_gain = if gain_e_per_dn > 0.0 {
+        1.0 / gain_e_per_dn
+    } else {
+        0.0
+    };
+    let read2 = read_noise_dn * read_noise_dn;
+    radiance
+        .iter()
+        .zip(ids)
+        .enumerate()
+        .map(|(i, (&s, &id))| {
+            if id == u32::MAX {
+                return 0;
+            }
+            let s = f64::from(s).max(0.0);
+            let hsh = splitmix64(seed ^ splitmix64(i as u64));
+            let value = s + (s * inv_gain + read2).sqrt() * approx_normal(hsh);
+            if value.is_nan() {
+                return 0;
+            }
+            value.round().clamp(0.0, 255.0) as u8
+        })
+        .collect()
 }
 
 /// The bilinearly interpolated bearing at a fractional pixel (camera frame, unit).
@@ -533,7 +617,9 @@ impl Shader<'_> {
     }
 
     /// The surface id and radiance (DN) seen along the unit ENU direction `d`.
-    fn sample(&self, d: &Vector3<f64>, cands: &[u32]) -> (u32, f64) {
+    /// The surface id, radiance (DN) and distance (metres; infinite for the sky) seen
+    /// along the unit ENU direction `d`.
+    fn sample(&self, d: &Vector3<f64>, cands: &[u32]) -> (u32, f64, f64) {
         let ground_t = if d.z < -1e-12 {
             -(self.origin.z) / d.z
         } else {
@@ -549,18 +635,29 @@ impl Shader<'_> {
             let base = 16 + (ob.index as u32) * 64 + face * 4;
             if ob.index >= self.scene.boxes.len() {
                 let albedo = self.scene.canopies[ob.index - self.scene.boxes.len()].albedo;
-                return (base, self.lit(albedo, &hit.normal));
+                return (base, self.lit(albedo, &hit.normal), hit.t);
             }
             let b = &self.scene.boxes[ob.index];
-            let (material, albedo) = match b.kind {
+            let (mut material, albedo, cell) = match b.kind {
                 BoxKind::Building => facade_material(b, &p, &hit.normal),
-                _ => (0, b.albedo),
+                _ => (0, b.albedo, None),
             };
             let mut value = self.lit(albedo, &hit.normal);
-            if material == 1 {
-                value += GLASS_REFLECTION_DN;
+            if let Some((floor, column)) = cell {
+                value += self.options.glass_reflection_dn;
+                let key = WindowKey {
+                    building: ob.index,
+                    face,
+                    floor,
+                    column,
+                };
+                if let Some(lit) = window_light(&key, self.options) {
+                    // A lit window: its own light, not the sky's reflection.
+                    value = lit;
+                    material = 3;
+                }
             }
-            return (base + material, value);
+            return (base + material, value, hit.t);
         }
         if ground_t.is_finite() && ground_t <= limit {
             let p = self.origin + d * ground_t;
@@ -571,20 +668,21 @@ impl Shader<'_> {
                 Ground::Sidewalk => (4, 0.35),
                 Ground::Lot => (5, 0.2),
             };
-            return (id, self.lit(albedo, &Vector3::z()));
+            return (id, self.lit(albedo, &Vector3::z()), ground_t);
         }
-        (0, self.sky(d))
+        (0, self.sky(d), f64::INFINITY)
     }
 }
 
-/// The material (0 wall, 1 window, 2 awning) and reflectance of a building's face at `p`.
+/// The material (0 wall, 1 window, 2 awning) and reflectance of a building's face at `p`,
+/// with the window's `(floor, column)` in its facade's grid for a window.
 fn facade_material(
     b: &super::scene::SceneBox,
     p: &Vector3<f64>,
     normal: &Vector3<f64>,
-) -> (u32, f64) {
+) -> (u32, f64, Option<(i64, i64)>) {
     if normal.z.abs() > 0.5 {
-        return (0, b.albedo);
+        return (0, b.albedo, None);
     }
     let along_x = normal.y.abs() > 0.5; // a face of constant y runs along x
     for a in &b.awnings {
@@ -594,7 +692,7 @@ fn facade_material(
             (p.x - a.x).abs() < 1e-3
         };
         if on_face && p.z <= a.z && p.z >= a.z - AWNING_BAND_M {
-            return (2, AWNING_ALBEDO);
+            return (2, AWNING_ALBEDO, None);
         }
     }
     let (face_min, face_len, along) = if along_x {
@@ -606,20 +704,129 @@ fn facade_material(
     if p.z >= base {
         let floor = ((p.z - base) / pitch).floor();
         let fz = p.z - base - floor * pitch;
-        let top = base + floor * pitch + lintel;
-        let n = ((face_len - 2.0 * WINDOW_MARGIN_M) / WINDOW_PITCH_M.0).floor();
-        if fz >= sill && fz <= lintel && top <= b.max.z - WINDOW_MARGIN_M && n >= 1.0 {
-            let start = (face_len - n * WINDOW_PITCH_M.0) / 2.0;
+        if let Some((n, start)) = window_columns(face_len)
+            && fz >= sill
+            && fz <= lintel
+            && (floor as i64) < window_floors(b.max.z)
+        {
             let x = along - face_min - start;
             let k = (x / WINDOW_PITCH_M.0).floor();
             let in_cell = x - k * WINDOW_PITCH_M.0;
             let margin = (WINDOW_PITCH_M.0 - WINDOW_PITCH_M.1) / 2.0;
             if k >= 0.0 && k < n && in_cell >= margin && in_cell <= margin + WINDOW_PITCH_M.1 {
-                return (1, GLASS_ALBEDO);
+                return (1, GLASS_ALBEDO, Some((floor as i64, k as i64)));
             }
         }
     }
-    (0, b.albedo)
+    (0, b.albedo, None)
+}
+
+/// The window columns of a facade `face_len` metres long: their number and the offset of
+/// the first column's cell from the facade's start; `None` when no window fits.
+fn window_columns(face_len: f64) -> Option<(f64, f64)> {
+    let n = ((face_len - 2.0 * WINDOW_MARGIN_M) / WINDOW_PITCH_M.0).floor();
+    (n >= 1.0).then(|| (n, (face_len - n * WINDOW_PITCH_M.0) / 2.0))
+}
+
+/// The number of window floors under a roof at `roof_z` (a floor's lintel stays
+/// [`WINDOW_MARGIN_M`] under the roof).
+fn window_floors(roof_z: f64) -> i64 {
+    let (base, pitch, _, lintel) = WINDOW_FLOORS_M;
+    let room = roof_z - WINDOW_MARGIN_M - base - lintel;
+    if room >= 0.0 {
+        (room / pitch).floor() as i64 + 1
+    } else {
+        0
+    }
+}
+
+/// Which window: the building's index among the scene's boxes, the face (`2 × axis +
+/// [normal positive]`), floor and column.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct WindowKey {
+    pub(crate) building: usize,
+    pub(crate) face: u32,
+    pub(crate) floor: i64,
+    pub(crate) column: i64,
+}
+
+/// Salt of the lit-window hash.
+const LIT_WINDOW_SALT: u64 = 0x6c69_745f_7769_6e64;
+
+/// The radiance (DN) of a window lit from inside, `None` for an unlit window: a hash of the
+/// window decides, so every camera and frame sees the same windows lit.
+pub(crate) fn window_light(key: &WindowKey, options: &DayOptions) -> Option<f64> {
+    if options.lit_window_share.is_nan() || options.lit_window_share <= 0.0 {
+        return None;
+    }
+    let h = splitmix64(
+        LIT_WINDOW_SALT
+            ^ splitmix64(key.building as u64)
+            ^ splitmix64(
+                (u64::from(key.face) << 40) ^ ((key.floor as u64) << 20) ^ key.column as u64,
+            ),
+    );
+    let unit = |x: u64| (x >> 11) as f64 / (1u64 << 53) as f64;
+    if unit(h) >= options.lit_window_share {
+        return None;
+    }
+    let (lo, hi) = options.lit_window_dn;
+    Some(lo + unit(splitmix64(h)) * (hi - lo))
+}
+
+/// A window of a facade (ENU metres).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Window {
+    pub(crate) key: WindowKey,
+    /// Centre of the pane.
+    pub(crate) centre: Vector3<f64>,
+    /// Outward normal of its face.
+    pub(crate) normal: Vector3<f64>,
+}
+
+/// Every window of building box `index` of `scene` (the grid [`facade_material`] draws).
+pub(crate) fn windows_of(scene: &DayScene, index: usize) -> Vec<Window> {
+    let Some(b) = scene
+        .boxes
+        .get(index)
+        .filter(|b| b.kind == BoxKind::Building)
+    else {
+        return Vec::new();
+    };
+    let (base, pitch, sill, lintel) = WINDOW_FLOORS_M;
+    let floors = window_floors(b.max.z);
+    let mut out = Vec::new();
+    for axis in 0..2usize {
+        // Faces of constant x (axis 0) run along y, and faces of constant y along x.
+        let run = 1 - axis;
+        let Some((n, start)) = window_columns(b.max[run] - b.min[run]) else {
+            continue;
+        };
+        for positive in [false, true] {
+            let mut normal = Vector3::zeros();
+            normal[axis] = if positive { 1.0 } else { -1.0 };
+            let plane = if positive { b.max[axis] } else { b.min[axis] };
+            for floor in 0..floors {
+                for column in 0..n as i64 {
+                    let mut centre = Vector3::zeros();
+                    centre[axis] = plane;
+                    centre[run] = b.min[run] + start + (column as f64 + 0.5) * WINDOW_PITCH_M.0;
+                    centre.z = base + floor as f64 * pitch + (sill + lintel) / 2.0;
+                    out.push(Window {
+                        key: WindowKey {
+                            building: index,
+                            face: axis as u32 * 2 + u32::from(positive),
+                            floor,
+                            column,
+                        },
+                        centre,
+                        normal,
+                    });
+                }
+            }
+        }
+    }
+    out
 }
 
 /// Separable Gaussian blur of standard deviation `sigma` (pixels; ≤ 0: a copy), the borders

@@ -22,6 +22,7 @@
 
 use super::{SimFrame, SimulatedDrive, Source};
 use crate::day::{DayOptions, DayRenderer, DayScene, sun_position};
+use crate::night::{NightOptions, NightRenderer, NightSpotKind};
 use crate::render::{LightSource, RenderOptions, RenderedFrame, Renderer, SpotKind};
 use rand::{RngExt, SeedableRng};
 use std::fmt::Write as _;
@@ -64,6 +65,23 @@ pub struct ImageOptions {
     pub day: DayOptions,
     /// Write JPEG at this quality (1–100) instead of PNG.
     pub jpeg_quality: Option<u8>,
+    /// Which night renderer draws night images.
+    pub night_scene: NightScene,
+    /// The realistic night renderer's parameters ([`NightScene::Realistic`]).
+    pub night: NightOptions,
+}
+
+/// The night renderer of [`TimeOfDay::Night`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum NightScene {
+    /// Lamps, transient lights and clutter spots on a flat dark background
+    /// ([`crate::render`]): fast, the tests' and the demo's.
+    #[default]
+    Flat,
+    /// The day scene at night with lamps, lit windows, car lights, wet-road reflections,
+    /// bloom and vignetting ([`crate::night`]); transient lights and clutter spots are
+    /// replaced by the scene's own windows and cars.
+    Realistic,
 }
 
 /// What the images show.
@@ -90,6 +108,8 @@ impl Default for ImageOptions {
             time_of_day: TimeOfDay::Night,
             day: DayOptions::default(),
             jpeg_quality: None,
+            night_scene: NightScene::Flat,
+            night: NightOptions::default(),
         }
     }
 }
@@ -109,6 +129,12 @@ pub struct ImagesSummary {
     pub clutter: usize,
     /// Visible corner landmarks (day images).
     pub corners: usize,
+    /// Visible lit windows (realistic night images).
+    pub windows: usize,
+    /// Head- and taillights drawn (realistic night images).
+    pub car_lights: usize,
+    /// Wet-road reflections drawn (realistic night images).
+    pub reflections: usize,
 }
 
 /// The image file of camera `camera` at frame `frame`, relative to the drive directory
@@ -252,10 +278,19 @@ pub fn write_images(
     })?;
     let renderer = Renderer::new(options.render.clone());
     let extension = extension_of(options);
+    let scene = || DayScene::from_world(&drive.world, drive.scenario.block_m, drive.scenario.seed);
     let day = (options.time_of_day == TimeOfDay::Day).then(|| {
         (
-            DayScene::from_world(&drive.world, drive.scenario.block_m, drive.scenario.seed),
+            scene(),
             DayRenderer::new(options.day.clone(), &drive.scenario.rig),
+        )
+    });
+    let realistic =
+        options.time_of_day == TimeOfDay::Night && options.night_scene == NightScene::Realistic;
+    let night = realistic.then(|| {
+        (
+            scene(),
+            NightRenderer::new(options.night.clone(), &drive.scenario.rig),
         )
     });
     let next = AtomicUsize::new(0);
@@ -275,18 +310,21 @@ pub fn write_images(
                 done.push((index, rows, summary));
                 continue;
             }
+            if let Some((scene, night_renderer)) = &night {
+                let (rows, summary) =
+                    write_night_frame(drive, frame, scene, night_renderer, dir, options)?;
+                progress(1);
+                done.push((index, rows, summary));
+                continue;
+            }
             let mut rows = String::new();
             let mut summary = ImagesSummary::default();
             for (camera, (rendered, sources)) in render_frame(drive, frame, &renderer, options)
                 .into_iter()
                 .enumerate()
             {
-                let path = dir.join(image_name_with_extension(frame.frame, camera, extension));
-                let bytes = encode_image(&rendered.image, options.jpeg_quality)
-                    .map_err(|e| werr(path.clone(), e))?;
-                write_bytes(&path, &bytes)?;
+                summary.bytes += write_image(dir, frame.frame, camera, &rendered.image, options)?;
                 summary.images += 1;
-                summary.bytes += bytes.len() as u64;
                 for spot in &rendered.spots {
                     let (kind, label) = match spot.kind {
                         SpotKind::Lamp(i) => match sources.get(i) {
@@ -343,6 +381,9 @@ pub fn write_images(
         total.transients += s.transients;
         total.clutter += s.clutter;
         total.corners += s.corners;
+        total.windows += s.windows;
+        total.car_lights += s.car_lights;
+        total.reflections += s.reflections;
     }
     write_text(&dir.join(IMAGES_TRUTH_NAME), &truth)?;
     let frames: Vec<FrameRecord> = drive
@@ -389,19 +430,8 @@ fn write_day_frame(
         else {
             continue;
         };
-        let path = dir.join(image_name_with_extension(
-            frame.frame,
-            camera,
-            extension_of(options),
-        ));
-        let bytes =
-            encode_image(&rendered.image, options.jpeg_quality).map_err(|e| DriveError::Write {
-                path: path.clone(),
-                source: std::io::Error::other(e),
-            })?;
-        write_bytes(&path, &bytes)?;
+        summary.bytes += write_image(dir, frame.frame, camera, &rendered.image, options)?;
         summary.images += 1;
-        summary.bytes += bytes.len() as u64;
         for c in &rendered.corners {
             summary.corners += 1;
             let _ = writeln!(
@@ -417,6 +447,96 @@ fn write_day_frame(
         }
     }
     Ok((rows, summary))
+}
+
+/// Renders, encodes and writes the realistic night images of every camera of `frame`;
+/// returns its truth rows and counts. Only the streetlights of [`lights_of`] are drawn as
+/// lamps: the scene's windows and cars take the place of the transient lights and clutter.
+fn write_night_frame(
+    drive: &SimulatedDrive,
+    frame: &SimFrame,
+    scene: &DayScene,
+    renderer: &NightRenderer,
+    dir: &Path,
+    options: &ImageOptions,
+) -> Result<(String, ImagesSummary), DriveError> {
+    let mut rows = String::new();
+    let mut summary = ImagesSummary::default();
+    for camera in 0..drive.scenario.rig.len() {
+        let (lights, landmarks): (Vec<LightSource>, Vec<usize>) =
+            lights_of(drive, frame, camera, options)
+                .into_iter()
+                .filter_map(|(light, source)| match source {
+                    Source::Landmark(l) => Some((light, l)),
+                    Source::Transient => None,
+                })
+                .unzip();
+        let seed = image_seed(drive.scenario.seed, frame.frame, camera);
+        let Some(rendered) = renderer.render(scene, &frame.world_from_rig, camera, &lights, seed)
+        else {
+            continue;
+        };
+        summary.bytes += write_image(dir, frame.frame, camera, &rendered.image, options)?;
+        summary.images += 1;
+        let id = |i: usize| {
+            landmarks
+                .get(i)
+                .and_then(|&l| drive.world.landmarks.get(l))
+                .map_or("", |l| l.id.as_str())
+        };
+        for spot in &rendered.spots {
+            let (kind, label) = match spot.kind {
+                NightSpotKind::Lamp(i) => {
+                    summary.lamps += 1;
+                    ("lamp", id(i))
+                }
+                NightSpotKind::Reflection(i) => {
+                    summary.reflections += 1;
+                    ("reflection", id(i))
+                }
+                NightSpotKind::Window => {
+                    summary.windows += 1;
+                    ("window", "")
+                }
+                NightSpotKind::Headlight => {
+                    summary.car_lights += 1;
+                    ("headlight", "")
+                }
+                NightSpotKind::Taillight => {
+                    summary.car_lights += 1;
+                    ("taillight", "")
+                }
+            };
+            let _ = writeln!(
+                rows,
+                "{},{camera},{kind},{label},{:.3},{:.3},{:.2},{:.1},{}",
+                frame.frame, spot.u, spot.v, spot.range_m, spot.peak_dn, spot.clipped_by_border
+            );
+        }
+    }
+    Ok((rows, summary))
+}
+
+/// Encodes `image` as `options` ask and writes it as the image of `(frame, camera)` under
+/// `dir`; returns its size in bytes.
+fn write_image(
+    dir: &Path,
+    frame: u64,
+    camera: usize,
+    image: &image::GrayImage,
+    options: &ImageOptions,
+) -> Result<u64, DriveError> {
+    let path = dir.join(image_name_with_extension(
+        frame,
+        camera,
+        extension_of(options),
+    ));
+    let bytes = encode_image(image, options.jpeg_quality).map_err(|e| DriveError::Write {
+        path: path.clone(),
+        source: std::io::Error::other(e),
+    })?;
+    write_bytes(&path, &bytes)?;
+    Ok(bytes.len() as u64)
 }
 
 /// Writes bytes atomically (temporary file in the same directory, then a rename).
