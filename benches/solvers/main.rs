@@ -24,6 +24,7 @@ criterion_group!(
     fix::benches,
     geo::benches,
     imaging::benches,
+    imaging::day_benches,
     localizer::benches,
     mapping::benches,
     matcher::benches,

@@ -43,6 +43,7 @@
 // `!(x < limit)` is used on purpose: it rejects NaN along with out-of-range values.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+mod corner_response;
 pub mod decode;
 pub mod detect;
 mod detection;

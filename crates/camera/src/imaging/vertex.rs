@@ -34,10 +34,27 @@
 //!
 //! The strength is the weakest edge's mean gradient (DN per pixel).
 
+use super::corner_response::{Gradients, Scratch};
 use super::detect::Mask;
 use crate::calibration::{Camera, CameraModel, Pixel};
 use image::GrayImage;
 use nalgebra::{Matrix2, Vector2, Vector3};
+use std::cell::RefCell;
+
+thread_local! {
+    /// The whole-image buffers of the last image on this thread: reused, so that a drive's
+    /// images do not each allocate (and page-fault in) a dozen image-sized arrays.
+    static SCRATCH: RefCell<Scratch> = RefCell::new(Scratch::default());
+}
+
+/// Runs `f` with this thread's [`Scratch`] (a fresh one if it is in use, which a nested
+/// call would need; never a panic).
+fn with_scratch<T>(f: impl FnOnce(&mut Scratch) -> T) -> T {
+    SCRATCH.with(|cell| match cell.try_borrow_mut() {
+        Ok(mut scratch) => f(&mut scratch),
+        Err(_) => f(&mut Scratch::default()),
+    })
+}
 
 /// Pixels of an edge's orientation are within this angle of its histogram peak (degrees).
 pub const ORIENTATION_TOLERANCE_DEG: f64 = 12.0;
@@ -347,14 +364,16 @@ impl VertexDetector {
         if w <= 2 * margin || h <= 2 * margin {
             return Vec::new();
         }
-        let (gx, gy) = sobel(image.as_raw(), w, h);
-        let mut candidates = self.candidates(&gx, &gy, w, h, mask);
-        candidates.sort_by(|a, b| b.0.total_cmp(&a.0));
-        candidates.truncate(c.max_candidates);
-        let mut found: Vec<VertexDetection> = candidates
-            .iter()
-            .filter_map(|&(_, u, v)| self.refine(image, &gx, &gy, u, v, camera).ok())
-            .collect();
+        let mut found: Vec<VertexDetection> = with_scratch(|scratch| {
+            let mut candidates = self.candidates(scratch, image, mask);
+            candidates.sort_by(|a, b| b.0.total_cmp(&a.0));
+            candidates.truncate(c.max_candidates);
+            let g = &scratch.gradients;
+            candidates
+                .iter()
+                .filter_map(|&(_, u, v)| self.refine(image, g, u, v, camera).ok())
+                .collect()
+        });
         found.sort_by(|a, b| b.strength.total_cmp(&a.strength));
         let mut kept: Vec<VertexDetection> = Vec::with_capacity(found.len());
         for d in found {
@@ -369,18 +388,20 @@ impl VertexDetector {
     }
 
     /// Every candidate of the image (local maxima of the Shi–Tomasi response above
-    /// [`VertexConfig::min_response`], unmasked), as `(response, u, v)`, unsorted.
+    /// [`VertexConfig::min_response`], unmasked), as `(response, u, v)`, unsorted; the
+    /// image's gradients are left in `scratch`.
     fn candidates(
         &self,
-        gx: &[f32],
-        gy: &[f32],
-        w: usize,
-        h: usize,
+        scratch: &mut Scratch,
+        image: &GrayImage,
         mask: Option<&Mask>,
     ) -> Vec<(f32, usize, usize)> {
         let c = &self.config;
+        let (w, h) = (image.width() as usize, image.height() as usize);
         let margin = c.patch_radius + 2;
-        let response = shi_tomasi(gx, gy, w, h);
+        scratch.gradients.compute(image.as_raw(), w, h);
+        scratch.shi_tomasi(TENSOR_RADIUS, Some(c.min_response));
+        let response = &scratch.response;
         let mut candidates = Vec::new();
         let r = c.nms_radius as isize;
         for v in margin..h - margin {
@@ -423,32 +444,33 @@ impl VertexDetector {
         if w <= 2 * (c.patch_radius + 2) || h <= 2 * (c.patch_radius + 2) {
             return Vec::new();
         }
-        let (gx, gy) = sobel(image.as_raw(), w, h);
-        let mut candidates = self.candidates(&gx, &gy, w, h, mask);
-        candidates.sort_by(|a, b| b.0.total_cmp(&a.0));
-        candidates
-            .iter()
-            .enumerate()
-            .map(|(rank, &(response, u, v))| VertexCandidate {
-                u,
-                v,
-                response,
-                rank,
-                outcome: if rank < c.max_candidates {
-                    self.refine(image, &gx, &gy, u, v, camera)
-                } else {
-                    Err(Rejection::NotRanked)
-                },
-            })
-            .collect()
+        with_scratch(|scratch| {
+            let mut candidates = self.candidates(scratch, image, mask);
+            candidates.sort_by(|a, b| b.0.total_cmp(&a.0));
+            let g = &scratch.gradients;
+            candidates
+                .iter()
+                .enumerate()
+                .map(|(rank, &(response, u, v))| VertexCandidate {
+                    u,
+                    v,
+                    response,
+                    rank,
+                    outcome: if rank < c.max_candidates {
+                        self.refine(image, g, u, v, camera)
+                    } else {
+                        Err(Rejection::NotRanked)
+                    },
+                })
+                .collect()
+        })
     }
 
     /// The corner near the candidate `(u, v)`, if two or three edges meet there.
     fn refine(
         &self,
         image: &GrayImage,
-        gx: &[f32],
-        gy: &[f32],
+        g: &Gradients,
         u: usize,
         v: usize,
         camera: Option<&Camera>,
@@ -472,26 +494,29 @@ impl VertexDetector {
             None => Matrix2::identity(),
         };
         let pr = c.patch_radius as isize;
+        let weak_squared = (c.min_edge_gradient as f64).max(0.0).powi(2) * (1.0 - 1e-9);
         let mut pixels = Vec::with_capacity((2 * c.patch_radius + 1).pow(2));
         let mut histogram = [0.0f64; ORIENTATION_BINS];
         for dv in -pr..=pr {
             for du in -pr..=pr {
                 let (uu, vv) = ((u as isize + du) as usize, (v as isize + dv) as usize);
                 let j = vv * w + uu;
-                let (x, y) = (gx[j] as f64, gy[j] as f64);
-                let g = x.hypot(y);
-                if !(g >= c.min_edge_gradient as f64) {
+                let (x, y) = g.at(j);
+                // Most pixels of a patch are flat: a squared test (exact: the gradients
+                // are eighths) with a margin drops them before `hypot`, whose test decides.
+                if x * x + y * y < weak_squared {
+                    continue;
+                }
+                let gradient = x.hypot(y);
+                if !(gradient >= c.min_edge_gradient as f64) {
                     continue;
                 }
                 let in_plane = gradient_map * Vector2::new(x, y);
-                let orientation = in_plane
-                    .y
-                    .atan2(in_plane.x)
-                    .rem_euclid(std::f64::consts::PI);
+                let orientation = rem_pi(in_plane.y.atan2(in_plane.x));
                 let Some(pos) = to_plane(&Pixel::new(uu as f64, vv as f64)) else {
                     continue;
                 };
-                let weight = g * g;
+                let weight = gradient * gradient;
                 let bin = ((orientation / std::f64::consts::PI * ORIENTATION_BINS as f64) as usize)
                     .min(ORIENTATION_BINS - 1);
                 histogram[bin] += weight;
@@ -499,7 +524,7 @@ impl VertexDetector {
                     x: pos,
                     weight,
                     orientation,
-                    gradient: g,
+                    gradient,
                 });
             }
         }
@@ -529,7 +554,7 @@ impl VertexDetector {
             let band = if pass == 0 { BAND_PX + 1.0 } else { BAND_PX };
             let mut refitted = Vec::with_capacity(lines.len());
             for line in &lines {
-                let theta = line.n.y.atan2(line.n.x).rem_euclid(std::f64::consts::PI);
+                let theta = rem_pi(line.n.y.atan2(line.n.x));
                 let selected = pixels.iter().filter(|p| {
                     angle_mod_pi(p.orientation - theta) <= tolerance
                         && (line.n.dot(&p.x) - line.d).abs() <= band
@@ -551,10 +576,16 @@ impl VertexDetector {
             }
         }
         if c.min_edge_extent_px > 0.0 {
-            let long = lines
-                .iter()
-                .filter(|l| self.edge_reaches(gx, gy, w, l, &corner, rectifier.as_ref()))
-                .count();
+            // Two long edges suffice, and the test stops as soon as they cannot be had.
+            let mut long = 0;
+            for (k, l) in lines.iter().enumerate() {
+                if long >= 2 || long + (lines.len() - k) < 2 {
+                    break;
+                }
+                if self.edge_reaches(g, l, &corner, rectifier.as_ref()) {
+                    long += 1;
+                }
+            }
             if long < 2 {
                 return Err(Rejection::ShortEdges);
             }
@@ -602,15 +633,13 @@ impl VertexDetector {
     /// first is judged on the steps inside.
     fn edge_reaches(
         &self,
-        gx: &[f32],
-        gy: &[f32],
-        w: usize,
+        g: &Gradients,
         line: &Line,
         corner: &Vector2<f64>,
         rectifier: Option<&Rectifier>,
     ) -> bool {
         let c = &self.config;
-        let h = gx.len() / w.max(1);
+        let (w, h) = (g.w, g.h);
         let mut t = Vector2::new(-line.n.y, line.n.x);
         if t.dot(&(line.mean - corner)) < 0.0 {
             t = -t;
@@ -626,6 +655,11 @@ impl VertexDetector {
             None => Some(*x),
         };
         let tolerance = EXTENT_TOLERANCE_DEG.to_radians();
+        let weak_squared = (c.min_edge_gradient as f64).max(0.0).powi(2) * (1.0 - 1e-9);
+        // With more misses than this the share cannot be reached whatever the remaining
+        // steps give (the total is at most `steps + 1`; the 0.5 absorbs the rounding of
+        // the final test), so the walk stops there with the same answer.
+        let most_misses = (1.0 - EXTENT_SHARE) * (steps + 1.0) + 0.5;
         let (mut hits, mut total) = (0usize, 0usize);
         for k in 0..=steps as usize {
             let q = on_line + t * (first + k as f64);
@@ -643,13 +677,17 @@ impl VertexDetector {
             let found = (vv - 1..=vv + 1).any(|y| {
                 (uu - 1..=uu + 1).any(|x| {
                     let j = y * w + x;
-                    let (a, b) = (gx[j] as f64, gy[j] as f64);
-                    a.hypot(b) >= c.min_edge_gradient as f64
+                    let (a, b) = g.at(j);
+                    // The squared test (exact) only skips `hypot` where it would fail.
+                    a * a + b * b >= weak_squared
+                        && a.hypot(b) >= c.min_edge_gradient as f64
                         && angle_mod_pi(b.atan2(a) - normal_orientation) <= tolerance
                 })
             });
             if found {
                 hits += 1;
+            } else if (total - hits) as f64 > most_misses {
+                return false;
             }
         }
         total > 0 && hits as f64 >= EXTENT_SHARE * total as f64
@@ -739,8 +777,21 @@ pub const EXTENT_TOLERANCE_DEG: f64 = 20.0;
 
 /// The distance between two orientations modulo π (radians, 0 … π/2).
 fn angle_mod_pi(a: f64) -> f64 {
-    let a = a.rem_euclid(std::f64::consts::PI);
+    let a = rem_pi(a);
     a.min(std::f64::consts::PI - a)
+}
+
+/// `a.rem_euclid(π)`, bit for bit, without the `fmod` call for `|a| < π` (every
+/// difference of two orientations, every `atan2`): there `a % π` is `a` exactly, and
+/// `rem_euclid` adds π to a negative remainder.
+#[inline]
+fn rem_pi(a: f64) -> f64 {
+    use std::f64::consts::PI;
+    if a.abs() < PI {
+        if a < 0.0 { a + PI } else { a }
+    } else {
+        a.rem_euclid(PI)
+    }
 }
 
 /// Up to three peaks of the circular orientation histogram (bin centres refined by a
@@ -790,11 +841,11 @@ fn histogram_peaks(
     chosen
 }
 
-/// The weighted total-least-squares line of the pixels.
-fn fit_line<'a>(pixels: impl Iterator<Item = &'a EdgePixel>) -> Option<Line> {
+/// The weighted total-least-squares line of the pixels (iterated twice: the mean, then
+/// the scatter about it; no buffer).
+fn fit_line<'a>(pixels: impl Iterator<Item = &'a EdgePixel> + Clone) -> Option<Line> {
     let (mut sw, mut sx, mut sg, mut count) = (0.0, Vector2::zeros(), 0.0, 0usize);
-    let collected: Vec<&EdgePixel> = pixels.collect();
-    for p in &collected {
+    for p in pixels.clone() {
         sw += p.weight;
         sx += p.x * p.weight;
         sg += p.gradient;
@@ -805,7 +856,7 @@ fn fit_line<'a>(pixels: impl Iterator<Item = &'a EdgePixel>) -> Option<Line> {
     }
     let mean = sx / sw;
     let mut scatter = Matrix2::zeros();
-    for p in &collected {
+    for p in pixels {
         let d = p.x - mean;
         scatter += d * d.transpose() * p.weight;
     }
@@ -843,75 +894,6 @@ fn intersect(lines: &[Line], min_angle: f64) -> Option<Vector2<f64>> {
     }
     let x = a.try_inverse()? * b;
     x.iter().all(|v| v.is_finite()).then_some(x)
-}
-
-/// Sobel gradients (DN per pixel); zero on the one-pixel border.
-fn sobel(src: &[u8], w: usize, h: usize) -> (Vec<f32>, Vec<f32>) {
-    let mut gx = vec![0f32; w * h];
-    let mut gy = vec![0f32; w * h];
-    for v in 1..h - 1 {
-        for u in 1..w - 1 {
-            let p = |du: isize, dv: isize| {
-                src[((v as isize + dv) as usize) * w + (u as isize + du) as usize] as f32
-            };
-            let i = v * w + u;
-            gx[i] = ((p(1, -1) + 2.0 * p(1, 0) + p(1, 1))
-                - (p(-1, -1) + 2.0 * p(-1, 0) + p(-1, 1)))
-                / 8.0;
-            gy[i] = ((p(-1, 1) + 2.0 * p(0, 1) + p(1, 1))
-                - (p(-1, -1) + 2.0 * p(0, -1) + p(1, -1)))
-                / 8.0;
-        }
-    }
-    (gx, gy)
-}
-
-/// The Shi–Tomasi response (smaller eigenvalue of the mean structure tensor over a
-/// (2·[`TENSOR_RADIUS`] + 1)² window).
-fn shi_tomasi(gx: &[f32], gy: &[f32], w: usize, h: usize) -> Vec<f32> {
-    let products: [Vec<f32>; 3] = [
-        gx.iter().map(|x| x * x).collect(),
-        gy.iter().map(|y| y * y).collect(),
-        gx.iter().zip(gy).map(|(x, y)| x * y).collect(),
-    ];
-    let summed: Vec<Vec<f32>> = products.iter().map(|p| box_sum(p, w, h)).collect();
-    let count = ((2 * TENSOR_RADIUS + 1) * (2 * TENSOR_RADIUS + 1)) as f32;
-    (0..w * h)
-        .map(|i| {
-            let (a, c, b) = (
-                summed[0][i] / count,
-                summed[1][i] / count,
-                summed[2][i] / count,
-            );
-            let half = 0.5 * (a + c);
-            half - (0.25 * (a - c) * (a - c) + b * b).sqrt()
-        })
-        .collect()
-}
-
-/// Box sum over a (2·[`TENSOR_RADIUS`] + 1)² window, borders clamped.
-fn box_sum(src: &[f32], w: usize, h: usize) -> Vec<f32> {
-    let r = TENSOR_RADIUS as isize;
-    let mut tmp = vec![0f32; w * h];
-    for v in 0..h {
-        for u in 0..w {
-            let mut s = 0.0;
-            for d in -r..=r {
-                s += src[v * w + (u as isize + d).clamp(0, w as isize - 1) as usize];
-            }
-            tmp[v * w + u] = s;
-        }
-    }
-    let mut out = vec![0f32; w * h];
-    for v in 0..h {
-        for d in -r..=r {
-            let vv = (v as isize + d).clamp(0, h as isize - 1) as usize;
-            for u in 0..w {
-                out[v * w + u] += tmp[vv * w + u];
-            }
-        }
-    }
-    out
 }
 
 #[cfg(test)]
@@ -1255,6 +1237,22 @@ mod tests {
             ..VertexConfig::default()
         });
         assert!(nearest(&former.detect(&image, None, None), cu, cv) > 3.0);
+    }
+
+    /// `rem_pi` is `rem_euclid(π)` bit for bit: on differences of orientations, at ±π
+    /// and ±0, beyond ±π, and on NaN.
+    #[test]
+    fn rem_pi_equals_rem_euclid() {
+        use std::f64::consts::PI;
+        let mut values = vec![0.0, -0.0, PI, -PI, 2.0 * PI, -7.5, 1e9, f64::NAN];
+        for k in -2000..=2000 {
+            values.push(k as f64 * 0.0017);
+            values.push(k as f64 * 0.0017 - PI);
+        }
+        for a in values {
+            let (fast, slow) = (rem_pi(a), a.rem_euclid(PI));
+            assert_eq!(fast.to_bits(), slow.to_bits(), "{a}: {fast} vs {slow}");
+        }
     }
 
     #[test]
