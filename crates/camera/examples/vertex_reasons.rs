@@ -31,25 +31,7 @@ fn main() {
     let rig = load(&drive.join("calibration.json"), None, None).expect("calibration");
     let frames = std::fs::read_to_string(drive.join("frames.csv")).expect("frames.csv");
     let truth = std::fs::read_to_string(drive.join("images_truth.csv")).expect("truth");
-    let mut corners: BTreeMap<(usize, usize), Vec<TruthCorner>> = BTreeMap::new();
-    for line in truth.lines().skip(1) {
-        let f: Vec<&str> = line.split(',').collect();
-        if f.len() < 9 || f[2] != "corner" || f[8] == "true" {
-            continue;
-        }
-        let (Ok(frame), Ok(cam), Ok(u), Ok(v), Ok(r)) = (
-            f[0].parse(),
-            f[1].parse(),
-            f[4].parse(),
-            f[5].parse(),
-            f[6].parse::<f64>(),
-        ) else {
-            continue;
-        };
-        if frame % step == 0 && r <= max_range {
-            corners.entry((frame, cam)).or_default().push((u, v, r));
-        }
-    }
+    let corners = truth_corners(&truth, step, max_range);
     let mut detector = VertexDetector::default();
     let c = &mut detector.config;
     env_override("VERTEX_MIN_EXTENT_PX", &mut c.min_edge_extent_px);
@@ -114,53 +96,7 @@ fn main() {
             }
             let explained = detector.explain(&image, Some(model), masks[cam].as_ref());
             if let Some(t) = table.as_mut() {
-                for &(u, v, r) in truths {
-                    let near = nearest_within_3px(&explained, u, v);
-                    let mut vals = Vec::new();
-                    for dv in -7i64..=7 {
-                        for du in -7i64..=7 {
-                            let (x, y) = (u.round() as i64 + du, v.round() as i64 + dv);
-                            if x >= 0
-                                && y >= 0
-                                && x < image.width() as i64
-                                && y < image.height() as i64
-                            {
-                                vals.push(image.get_pixel(x as u32, y as u32).0[0]);
-                            }
-                        }
-                    }
-                    vals.sort_unstable();
-                    let (p5, p95) = if vals.is_empty() {
-                        (0, 0)
-                    } else {
-                        (vals[vals.len() / 20], vals[vals.len() * 19 / 20])
-                    };
-                    let (dist, resp, outcome) = match near {
-                        None => (f64::NAN, f32::NAN, "none".to_string()),
-                        Some(c) => (
-                            (c.u as f64 - u).hypot(c.v as f64 - v),
-                            c.response,
-                            match c.outcome {
-                                Ok(d) if (d.u - u).hypot(d.v - v) <= 3.0 => "found".to_string(),
-                                Ok(_) => "off".to_string(),
-                                Err(e) => format!("{e:?}"),
-                            },
-                        ),
-                    };
-                    let error = explained
-                        .iter()
-                        .filter(|c| c.response >= found_response)
-                        .filter_map(|c| c.outcome.as_ref().ok())
-                        .map(|d| (d.u - u).hypot(d.v - v))
-                        .fold(f64::INFINITY, f64::min);
-                    let found = error <= 3.0;
-                    writeln!(
-                        t,
-                        "{frame},{cam},{u},{v},{r},{dist},{resp},{outcome},{},{p5},{p95},{found},{error}",
-                        i32::from(p95) - i32::from(p5)
-                    )
-                    .expect("write");
-                }
+                write_table_rows(t, &image, &explained, truths, (frame, cam), found_response);
             }
             for &(u, v, r) in truths {
                 let found = explained.iter().any(|c| {
@@ -199,6 +135,90 @@ fn main() {
     println!("by range bucket (m):");
     for ((b, k), n) in &by_range {
         println!("{b:4} {n:6}  {k}");
+    }
+}
+
+/// The unclipped truth corners of every `step`-th frame within `max_range` m, by
+/// `(frame, camera)`, from the text of `images_truth.csv`.
+fn truth_corners(
+    truth: &str,
+    step: usize,
+    max_range: f64,
+) -> BTreeMap<(usize, usize), Vec<TruthCorner>> {
+    let mut corners: BTreeMap<(usize, usize), Vec<TruthCorner>> = BTreeMap::new();
+    for line in truth.lines().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        if f.len() < 9 || f[2] != "corner" || f[8] == "true" {
+            continue;
+        }
+        let (Ok(frame), Ok(cam), Ok(u), Ok(v), Ok(r)) = (
+            f[0].parse(),
+            f[1].parse(),
+            f[4].parse(),
+            f[5].parse(),
+            f[6].parse::<f64>(),
+        ) else {
+            continue;
+        };
+        if frame % step == 0 && r <= max_range {
+            corners.entry((frame, cam)).or_default().push((u, v, r));
+        }
+    }
+    corners
+}
+
+/// One row of the `VERTEX_TABLE` per truth corner: its nearest candidate, the local
+/// contrast (p95 − p5 of the 15 × 15 px around it) and its fate.
+fn write_table_rows(
+    t: &mut impl Write,
+    image: &image::GrayImage,
+    explained: &[VertexCandidate],
+    truths: &[TruthCorner],
+    (frame, cam): (usize, usize),
+    found_response: f32,
+) {
+    for &(u, v, r) in truths {
+        let near = nearest_within_3px(&explained, u, v);
+        let mut vals = Vec::new();
+        for dv in -7i64..=7 {
+            for du in -7i64..=7 {
+                let (x, y) = (u.round() as i64 + du, v.round() as i64 + dv);
+                if x >= 0 && y >= 0 && x < image.width() as i64 && y < image.height() as i64 {
+                    vals.push(image.get_pixel(x as u32, y as u32).0[0]);
+                }
+            }
+        }
+        vals.sort_unstable();
+        let (p5, p95) = if vals.is_empty() {
+            (0, 0)
+        } else {
+            (vals[vals.len() / 20], vals[vals.len() * 19 / 20])
+        };
+        let (dist, resp, outcome) = match near {
+            None => (f64::NAN, f32::NAN, "none".to_string()),
+            Some(c) => (
+                (c.u as f64 - u).hypot(c.v as f64 - v),
+                c.response,
+                match c.outcome {
+                    Ok(d) if (d.u - u).hypot(d.v - v) <= 3.0 => "found".to_string(),
+                    Ok(_) => "off".to_string(),
+                    Err(e) => format!("{e:?}"),
+                },
+            ),
+        };
+        let error = explained
+            .iter()
+            .filter(|c| c.response >= found_response)
+            .filter_map(|c| c.outcome.as_ref().ok())
+            .map(|d| (d.u - u).hypot(d.v - v))
+            .fold(f64::INFINITY, f64::min);
+        let found = error <= 3.0;
+        writeln!(
+            t,
+            "{frame},{cam},{u},{v},{r},{dist},{resp},{outcome},{},{p5},{p95},{found},{error}",
+            i32::from(p95) - i32::from(p5)
+        )
+        .expect("write");
     }
 }
 

@@ -534,47 +534,7 @@ impl VertexDetector {
             return Err(Rejection::OneDirection);
         }
         let start = to_plane(&centre).ok_or(Rejection::NoBearing)?;
-        let tolerance = ORIENTATION_TOLERANCE_DEG.to_radians();
-        // Initial lines: through the candidate, normal along each peak's gradient direction.
-        let mut lines: Vec<Line> = directions
-            .iter()
-            .map(|&theta| {
-                let n = Vector2::new(theta.cos(), theta.sin());
-                Line {
-                    n,
-                    d: n.dot(&start),
-                    count: 0,
-                    mean_gradient: 0.0,
-                    mean: start,
-                }
-            })
-            .collect();
-        let mut corner = start;
-        for pass in 0..=REFINEMENT_PASSES {
-            let band = if pass == 0 { BAND_PX + 1.0 } else { BAND_PX };
-            let mut refitted = Vec::with_capacity(lines.len());
-            for line in &lines {
-                let theta = rem_pi(line.n.y.atan2(line.n.x));
-                let selected = pixels.iter().filter(|p| {
-                    angle_mod_pi(p.orientation - theta) <= tolerance
-                        && (line.n.dot(&p.x) - line.d).abs() <= band
-                        && (p.x - corner).norm() >= c.exclusion_px
-                });
-                if let Some(fit) = fit_line(selected)
-                    && fit.count >= c.min_edge_pixels
-                {
-                    refitted.push(fit);
-                }
-            }
-            if refitted.len() < 2 {
-                return Err(Rejection::TooFewEdgePixels);
-            }
-            lines = refitted;
-            corner = intersect(&lines, c.min_angle_deg.to_radians()).ok_or(Rejection::Parallel)?;
-            if (corner - start).norm() > c.max_shift_px + BAND_PX {
-                return Err(Rejection::Shift);
-            }
-        }
+        let (lines, corner) = self.fit_lines(&pixels, &directions, start)?;
         if c.min_edge_extent_px > 0.0 {
             // Two long edges suffice, and the test stops as soon as they cannot be had.
             let mut long = 0;
@@ -622,6 +582,60 @@ impl VertexDetector {
             edges: lines.len() as u8,
             residual_px,
         })
+    }
+
+    /// The edges of a corner fitted to the patch's edge pixels (plane coordinates), from
+    /// lines through `start` along the histogram's `directions`, and their intersection,
+    /// refined [`REFINEMENT_PASSES`] times.
+    fn fit_lines(
+        &self,
+        pixels: &[EdgePixel],
+        directions: &[f64],
+        start: Vector2<f64>,
+    ) -> Result<(Vec<Line>, Vector2<f64>), Rejection> {
+        let c = &self.config;
+        let tolerance = ORIENTATION_TOLERANCE_DEG.to_radians();
+        // Initial lines: through the candidate, normal along each peak's gradient direction.
+        let mut lines: Vec<Line> = directions
+            .iter()
+            .map(|&theta| {
+                let n = Vector2::new(theta.cos(), theta.sin());
+                Line {
+                    n,
+                    d: n.dot(&start),
+                    count: 0,
+                    mean_gradient: 0.0,
+                    mean: start,
+                }
+            })
+            .collect();
+        let mut corner = start;
+        for pass in 0..=REFINEMENT_PASSES {
+            let band = if pass == 0 { BAND_PX + 1.0 } else { BAND_PX };
+            let mut refitted = Vec::with_capacity(lines.len());
+            for line in &lines {
+                let theta = rem_pi(line.n.y.atan2(line.n.x));
+                let selected = pixels.iter().filter(|p| {
+                    angle_mod_pi(p.orientation - theta) <= tolerance
+                        && (line.n.dot(&p.x) - line.d).abs() <= band
+                        && (p.x - corner).norm() >= c.exclusion_px
+                });
+                if let Some(fit) = fit_line(selected)
+                    && fit.count >= c.min_edge_pixels
+                {
+                    refitted.push(fit);
+                }
+            }
+            if refitted.len() < 2 {
+                return Err(Rejection::TooFewEdgePixels);
+            }
+            lines = refitted;
+            corner = intersect(&lines, c.min_angle_deg.to_radians()).ok_or(Rejection::Parallel)?;
+            if (corner - start).norm() > c.max_shift_px + BAND_PX {
+                return Err(Rejection::Shift);
+            }
+        }
+        Ok((lines, corner))
     }
 }
 

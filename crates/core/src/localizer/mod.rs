@@ -84,11 +84,19 @@ pub use map::LandmarkMap;
 use crate::mapping::{
     LandmarkMapper, MappedLandmark, MapperOptions, MappingFrame, NearbySurrogate, RigObservation,
 };
-use crate::matcher::{Detection, MatchOptions, MatchStatus, SearchArea, match_detections};
+use crate::matcher::{
+    Detection, MatchEstimate, MatchOptions, MatchStatus, SearchArea, match_detections,
+};
 use crate::measurement::effective_bearing_variance;
 use nalgebra::{Matrix3, Matrix6, Rotation3, UnitQuaternion, Vector3};
 use std::sync::Arc;
 use track::{Candidate, CandidateSource, GuessUncertainty, ObsRay};
+
+/// A fix found by tracking or re-acquisition: the refinement, the candidates its
+/// assignment indexes, and where it came from.
+type Tracked = (track::TrackResult, Vec<Candidate>, FixSource);
+/// Why a frame got no fix: its status and message.
+type Refusal = (LocalizerStatus, String);
 use vgps_camera::calibration::{Pixel, Rig};
 use vgps_geometry::attitude::HeadingPitchRoll;
 use vgps_geometry::geo::Geodetic;
@@ -627,41 +635,15 @@ impl Localizer {
         }
         let gnss_enu = frame.gnss.map(|g| self.map.frame().to_enu(&g.position));
 
-        let mut tracked = None;
-        // Why tracking gave no fix, reported with the matcher's reason (per-frame causes).
-        let mut tracking_refusal = None;
-        if let Some(state) = self.state
-            && frame.time_s - state.time_s <= self.options.max_tracking_gap_s
-        {
-            let (pose, guess, predicted_covariance) =
-                self.predict_with_covariance(&state, frame.time_s);
-            let candidates = self.candidates(&pose.translation.vector, 0.0);
-            match track::track(
-                &pose,
-                guess,
-                &observations,
-                &candidates,
-                MIN_TRACKED_CORRESPONDENCES,
-            ) {
-                None => {
-                    tracking_refusal = Some(format!(
-                        "tracking: fewer than {MIN_TRACKED_CORRESPONDENCES} associations among {} candidates",
-                        candidates.len()
-                    ));
+        let (mut tracked, tracking_refusal) = match self.state {
+            Some(state) if frame.time_s - state.time_s <= self.options.max_tracking_gap_s => {
+                match self.track_from(&state, frame.time_s, &observations) {
+                    Ok(t) => (Some(t), None),
+                    Err(why) => (None, Some(why)),
                 }
-                Some(t) => match tracked_fix_refusal(
-                    &pose,
-                    &guess,
-                    &predicted_covariance,
-                    &t,
-                    &candidates,
-                    &observations,
-                ) {
-                    None => tracked = Some((t, candidates, FixSource::Tracking)),
-                    Some(why) => tracking_refusal = Some(format!("tracking: {why}")),
-                },
             }
-        }
+            _ => (None, None),
+        };
         if tracked.is_none() {
             match self.reacquire(frame.time_s, &observations, gnss_enu, frame.attitude) {
                 Ok(t) => tracked = Some(t),
@@ -758,6 +740,41 @@ impl Localizer {
             rms_residual_rad: t.rms_residual_rad,
         });
         fix
+    }
+
+    /// Tracking from the motion state: the fix associated around the predicted pose, with
+    /// its candidates, or why tracking gave none (reported with the matcher's reason).
+    fn track_from(
+        &mut self,
+        state: &MotionState,
+        time_s: f64,
+        observations: &[ObsRay],
+    ) -> Result<Tracked, String> {
+        let (pose, guess, predicted_covariance) = self.predict_with_covariance(state, time_s);
+        let candidates = self.candidates(&pose.translation.vector, 0.0);
+        let Some(t) = track::track(
+            &pose,
+            guess,
+            observations,
+            &candidates,
+            MIN_TRACKED_CORRESPONDENCES,
+        ) else {
+            return Err(format!(
+                "tracking: fewer than {MIN_TRACKED_CORRESPONDENCES} associations among {} candidates",
+                candidates.len()
+            ));
+        };
+        match tracked_fix_refusal(
+            &pose,
+            &guess,
+            &predicted_covariance,
+            &t,
+            &candidates,
+            observations,
+        ) {
+            None => Ok((t, candidates, FixSource::Tracking)),
+            Some(why) => Err(format!("tracking: {why}")),
+        }
     }
 
     /// Rays and angular σ of the frame's usable observations.
@@ -884,15 +901,15 @@ impl Localizer {
             .is_none_or(|t| (time_s - t).abs() >= self.options.cold_start_interval_s)
     }
 
-    /// Re-acquisition through the matcher, around the best prior available.
-    #[allow(clippy::type_complexity)]
-    fn reacquire(
+    /// Where re-acquisition searches, in order of preference: around the motion model's
+    /// prediction, the satellite position, the last place known (once a second), else the
+    /// whole map (a cold start, when due); or why there is no search on this frame.
+    fn search_area(
         &mut self,
         time_s: f64,
-        observations: &[ObsRay],
         gnss_enu: Option<Vector3<f64>>,
         attitude: Option<AttitudePrior>,
-    ) -> Result<(track::TrackResult, Vec<Candidate>, FixSource), (LocalizerStatus, String)> {
+    ) -> Result<(SearchArea, FixSource), Refusal> {
         let predicted = self.state.map(|s| {
             let (pose, guess) = self.predict(&s, time_s);
             let dt = (time_s - s.time_s).max(0.0);
@@ -977,7 +994,20 @@ impl Localizer {
                 "no prior (no recent fix, no satellite GPS) and cold start disabled".into(),
             ));
         };
-        let area = area.ok_or((LocalizerStatus::NoFix, "invalid search area".to_string()))?;
+        area.map(|a| (a, source))
+            .ok_or((LocalizerStatus::NoFix, "invalid search area".to_string()))
+    }
+
+    /// Re-acquisition through the matcher, around the best prior available.
+    fn reacquire(
+        &mut self,
+        time_s: f64,
+        observations: &[ObsRay],
+        gnss_enu: Option<Vector3<f64>>,
+        attitude: Option<AttitudePrior>,
+    ) -> Result<Tracked, Refusal> {
+        let (area, source) = self.search_area(time_s, gnss_enu, attitude)?;
+
         let detections: Vec<Detection> = observations
             .iter()
             .map(|o| Detection {
@@ -1022,6 +1052,17 @@ impl Localizer {
             _ => return Err((LocalizerStatus::NoFix, result.message)),
         };
         let estimate = estimate.ok_or((LocalizerStatus::NoFix, "matcher gave no pose".into()))?;
+        self.track_matched(&estimate, observations)
+            .map(|(t, candidates)| (t, candidates, source))
+    }
+
+    /// The matcher's pose tracked: associated with every candidate near it and refined, or
+    /// refused when it does not track, fits badly or is not redundant enough.
+    fn track_matched(
+        &mut self,
+        estimate: &MatchEstimate,
+        observations: &[ObsRay],
+    ) -> Result<(track::TrackResult, Vec<Candidate>), Refusal> {
         let position = estimate.world_from_rig.translation.vector;
         let candidates = self.candidates(&position, 0.0);
         let c = &estimate.covariance;
@@ -1048,7 +1089,7 @@ impl Localizer {
             LocalizerStatus::NoFix,
             "the matcher's pose did not track".to_string(),
         ))?;
-        Ok((t, candidates, source))
+        Ok((t, candidates))
     }
 
     fn update_state(&mut self, time_s: f64, pose: &Pose, covariance: &Matrix6<f64>) {
