@@ -178,7 +178,7 @@ fn write_table_rows(
     found_response: f32,
 ) {
     for &(u, v, r) in truths {
-        let near = nearest_within_3px(&explained, u, v);
+        let near = nearest_within_3px(explained, u, v);
         let mut vals = Vec::new();
         for dv in -7i64..=7 {
             for du in -7i64..=7 {
