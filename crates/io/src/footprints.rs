@@ -28,7 +28,7 @@
 //! feature ([`FootprintRead::skipped`]); the other features are converted. Not JSON, a `crs`
 //! that is not WGS84, or no landmark at all is an error.
 
-use crate::gis::{GroundReference, geoid_height_m, is_wgs84, number};
+use crate::gis::{GroundReference, geoid_height_m, geojson_features, number, parse_wgs84_geojson};
 use crate::{InputError, Landmark, MAX_ABS_LAT_DEG, MAX_ABS_LON_DEG};
 use std::path::Path;
 
@@ -230,38 +230,8 @@ pub fn corners_from_footprints(
     options: &FootprintOptions,
 ) -> Result<FootprintRead, InputError> {
     let err = |field: &str, reason: String| InputError::field(path, 1, field, reason);
-    let root: serde_json::Value = serde_json::from_str(text)
-        .map_err(|e| InputError::field(path, e.line() as u64, "json", e.to_string()))?;
-    if let Some(crs) = root.get("crs") {
-        let name = crs
-            .pointer("/properties/name")
-            .and_then(|v| v.as_str())
-            .unwrap_or("");
-        if !is_wgs84(name) {
-            return Err(err(
-                "crs",
-                format!(
-                    "the coordinates are in `{name}`, not WGS84 longitude, latitude: reproject \
-                     to EPSG:4326 first (e.g. `ogr2ogr -t_srs EPSG:4326`)"
-                ),
-            ));
-        }
-    }
-    let features: Vec<&serde_json::Value> = match root.get("type").and_then(|t| t.as_str()) {
-        Some("FeatureCollection") => root
-            .get("features")
-            .and_then(|f| f.as_array())
-            .ok_or_else(|| err("features", "missing or not an array".into()))?
-            .iter()
-            .collect(),
-        Some("Feature") => vec![&root],
-        other => {
-            return Err(err(
-                "type",
-                format!("{other:?} is not a FeatureCollection or a Feature"),
-            ));
-        }
-    };
+    let root = parse_wgs84_geojson(path, text)?;
+    let features = geojson_features(path, &root)?;
     let mut read = FootprintRead {
         landmarks: Vec::new(),
         footprints: 0,

@@ -213,18 +213,13 @@ pub(crate) fn is_wgs84(name: &str) -> bool {
     n.ends_with("CRS84") || n.ends_with("4326") || n.ends_with("CRS:84")
 }
 
-/// Reads a GeoJSON `FeatureCollection` (or a single `Feature`) of points.
-///
-/// # Errors
-/// [`InputError`] naming the file and the feature (`feature k`, 0-based, and its id): not
-/// JSON, a `crs` that is not WGS84, a position outside ±180°/±90°, a feature without a
-/// ground height when no default is given, a non-number `height`/`ele`/`sigma_m`.
-/// (The line given is 1, GeoJSON has no rows; the feature is named in the message.)
-pub fn landmarks_from_geojson(
+/// The features of a GeoJSON text (a `FeatureCollection`, or one `Feature`) in WGS84: the
+/// parsed root, whose `features` the caller reads with [`geojson_features`]. Errors name the
+/// file and the field: not JSON, a `crs` that is not WGS84.
+pub(crate) fn parse_wgs84_geojson(
     path: &Path,
     text: &str,
-    options: &GisOptions,
-) -> Result<GisRead, InputError> {
+) -> Result<serde_json::Value, InputError> {
     let err = |field: &str, reason: String| InputError::field(path, 1, field, reason);
     let root: serde_json::Value = serde_json::from_str(text)
         .map_err(|e| InputError::field(path, e.line() as u64, "json", e.to_string()))?;
@@ -248,21 +243,47 @@ pub fn landmarks_from_geojson(
             ));
         }
     }
-    let features: Vec<&serde_json::Value> = match root.get("type").and_then(|t| t.as_str()) {
+    Ok(root)
+}
+
+/// The features of a GeoJSON root parsed by [`parse_wgs84_geojson`]; errors name `path`.
+pub(crate) fn geojson_features<'a>(
+    path: &Path,
+    root: &'a serde_json::Value,
+) -> Result<Vec<&'a serde_json::Value>, InputError> {
+    let err = |field: &str, reason: String| InputError::field(path, 1, field, reason);
+    Ok(match root.get("type").and_then(|t| t.as_str()) {
         Some("FeatureCollection") => root
             .get("features")
             .and_then(|f| f.as_array())
             .ok_or_else(|| err("features", "missing or not an array".into()))?
             .iter()
             .collect(),
-        Some("Feature") => vec![&root],
+        Some("Feature") => vec![root],
         other => {
             return Err(err(
                 "type",
                 format!("{other:?} is not a FeatureCollection or a Feature"),
             ));
         }
-    };
+    })
+}
+
+/// Reads a GeoJSON `FeatureCollection` (or a single `Feature`) of points.
+///
+/// # Errors
+/// [`InputError`] naming the file and the feature (`feature k`, 0-based, and its id): not
+/// JSON, a `crs` that is not WGS84, a position outside ±180°/±90°, a feature without a
+/// ground height when no default is given, a non-number `height`/`ele`/`sigma_m`.
+/// (The line given is 1, GeoJSON has no rows; the feature is named in the message.)
+pub fn landmarks_from_geojson(
+    path: &Path,
+    text: &str,
+    options: &GisOptions,
+) -> Result<GisRead, InputError> {
+    let err = |field: &str, reason: String| InputError::field(path, 1, field, reason);
+    let root = parse_wgs84_geojson(path, text)?;
+    let features = geojson_features(path, &root)?;
     let mut read = GisRead {
         landmarks: Vec::new(),
         default_height: 0,
