@@ -90,6 +90,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 geodetic: truth,
                 heading_deg: heading,
             }),
+            message: if no_fix {
+                "simulated: no fix on this frame".into()
+            } else {
+                String::new()
+            },
         });
     }
     let (report, files) = write_outputs(std::path::Path::new(&out), &drive, &records)?;

@@ -219,15 +219,25 @@ fn frames_with_unusable_images_are_counted() {
     assert_eq!(images["frames_partially_usable"], 1);
     assert_eq!(images["unusable_images"], 2 + (rows[4].len() as u64 - 2));
     assert_eq!(report["status_counts"]["bad_image"], 1);
-    let csv = std::fs::read_to_string(out.join("fixes.csv")).unwrap();
-    let mut lines = csv.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    assert_eq!(header.last(), Some(&"unusable_images"));
-    let counts: Vec<String> = lines
-        .map(|l| l.rsplit(',').next().unwrap().to_string())
-        .collect();
+    let mut csv = csv::Reader::from_path(out.join("fixes.csv")).unwrap();
+    let header: Vec<String> = csv.headers().unwrap().iter().map(String::from).collect();
+    let n = header.len();
+    assert_eq!(header[n - 2..], ["unusable_images", "message"]);
+    let records: Vec<csv::StringRecord> = csv.records().map(Result::unwrap).collect();
+    let counts: Vec<&str> = records.iter().map(|r| &r[n - 2]).collect();
     assert_eq!(counts[2], "2");
     assert_eq!(counts[4], (rows[4].len() - 2).to_string());
+    // The frame without a usable image says why, naming its missing files.
+    assert_eq!(&records[4][2], "bad_image");
+    assert!(
+        records[4][n - 1].contains(&rows[4][2]),
+        "{:?}",
+        &records[4][n - 1]
+    );
+    // Every frame says why it has its status.
+    for r in &records {
+        assert!(!r[n - 1].is_empty(), "{r:?}");
+    }
     assert_eq!(counts[0], "0");
     let summary = std::fs::read_to_string(out.join("summary.txt")).unwrap();
     assert!(

@@ -336,13 +336,13 @@ impl FrameStep<'_, '_> {
             geodetic: t.position,
             heading_deg: vgps_sim::simulate::heading_deg(&t.enu_from_rig),
         });
-        let (status, visual, unusable_images) = match d {
+        let (status, visual, unusable_images, message) = match d {
             FrameDetections::Bad {
                 message,
                 unusable_images,
             } => {
                 let _ = writeln!(err, "vgps: frame {}: {message}", f.frame);
-                (BAD_IMAGE_STATUS.to_string(), None, unusable_images)
+                (BAD_IMAGE_STATUS.to_string(), None, unusable_images, message)
             }
             FrameDetections::Ok {
                 detections: dets,
@@ -374,6 +374,7 @@ impl FrameStep<'_, '_> {
                     fix.status.as_str().to_string(),
                     visual_of(&fix),
                     unusable_images,
+                    fix.message,
                 )
             }
         };
@@ -385,6 +386,7 @@ impl FrameStep<'_, '_> {
             gnss,
             unusable_images,
             truth,
+            message,
         }
     }
 }

@@ -113,6 +113,7 @@ fn drive() -> (DriveInfo, Vec<FrameOutcome>, MapExtras) {
                     geodetic: geo(truth),
                     heading_deg: 90.0,
                 }),
+                message: String::new(),
             }
         })
         .collect();

@@ -36,10 +36,13 @@ pub const TRUTH_COLUMNS: [&str; 6] = [
     "err_heading_deg",
 ];
 
-/// The column appended (last) when any record's detections came from the images
+/// The column appended when any record's detections came from the images
 /// ([`FrameOutcome::unusable_images`] is `Some`): the number of the frame's images that could
 /// not be used.
 pub const IMAGE_COLUMNS: [&str; 1] = ["unusable_images"];
+
+/// The last column, always present: [`FrameOutcome::message`], why the frame has its status.
+pub const MESSAGE_COLUMN: &str = "message";
 
 /// Decimals of latitudes and longitudes (1e-9° ≈ 0.1 mm).
 pub(crate) const LATLON_DECIMALS: usize = 9;
@@ -73,10 +76,11 @@ fn push_geodetic(row: &mut Vec<String>, g: Option<&Geodetic>) {
 }
 
 /// `fixes.csv`: a header line ([`FIXES_COLUMNS`], then [`TRUTH_COLUMNS`] when any record
-/// has a truth, then [`IMAGE_COLUMNS`] when any record came from images) and one row per
-/// record. Missing values are empty fields; latitudes and
-/// longitudes have 9 decimals, metres 3, degrees 4, times 6. Lines end in `\n`; the status
-/// is quoted only if it contains a comma, quote or newline.
+/// has a truth, then [`IMAGE_COLUMNS`] when any record came from images, then
+/// [`MESSAGE_COLUMN`]) and one row per record. Missing values are empty fields; latitudes and
+/// longitudes have 9 decimals, metres 3, degrees 4, times 6. Lines end in `\n`; a text field
+/// (status, message) is quoted only if it contains a comma, quote or newline, and a message's
+/// line breaks are replaced by spaces so that one frame stays one line.
 pub fn fixes_csv(drive: &DriveInfo, records: &[FrameOutcome]) -> String {
     let geom = derive(drive, records);
     let with_truth = records.iter().any(|r| r.truth.is_some());
@@ -91,6 +95,7 @@ pub fn fixes_csv(drive: &DriveInfo, records: &[FrameOutcome]) -> String {
     if with_images {
         header.extend(IMAGE_COLUMNS);
     }
+    header.push(MESSAGE_COLUMN);
     let mut rows: Vec<Vec<String>> = vec![header.iter().map(|s| s.to_string()).collect()];
     for (r, g) in records.iter().zip(&geom) {
         let v = r.visual.as_ref();
@@ -127,6 +132,7 @@ pub fn fixes_csv(drive: &DriveInfo, records: &[FrameOutcome]) -> String {
         if with_images {
             row.push(r.unusable_images.map(|n| n.to_string()).unwrap_or_default());
         }
+        row.push(r.message.replace(['\r', '\n'], " "));
         rows.push(row);
     }
     for row in &rows {

@@ -39,6 +39,7 @@
 //!         gnss: Some(origin),
 //!         unusable_images: None,
 //!         truth: Some(Truth { geodetic: origin, heading_deg: 0.0 }),
+//!         message: "too few detections".into(),
 //!     })
 //!     .collect();
 //! let report = Report::compute(&drive, &records);
@@ -63,7 +64,7 @@ pub(crate) mod time;
 mod tracks;
 
 pub use atomic::write_atomic;
-pub use csv_out::{FIXES_COLUMNS, IMAGE_COLUMNS, TRUTH_COLUMNS, fixes_csv};
+pub use csv_out::{FIXES_COLUMNS, IMAGE_COLUMNS, MESSAGE_COLUMN, TRUTH_COLUMNS, fixes_csv};
 pub use html::{MapExtras, VENDOR_BEGIN, VENDOR_END, report_html, report_html_with};
 pub use nmea::{
     GGA_QUALITY_VISUAL, MAX_VELOCITY_GAP_S, NMEA_TALKER, NmeaEpochWriter, error_ellipse,
@@ -192,6 +193,9 @@ pub struct FrameOutcome {
     pub unusable_images: Option<u32>,
     /// The ground truth, if the drive has one.
     pub truth: Option<Truth>,
+    /// Why the frame has this status, in the localizer's words (`fixes.csv`'s last column):
+    /// for a frame without a fix, what was missing or refused; may be empty.
+    pub message: String,
 }
 
 /// The drive's metadata.

@@ -61,6 +61,7 @@ fn known_records() -> Vec<FrameOutcome> {
                     geodetic: at(x, 0.0, 0.0),
                     heading_deg: 359.0 - i as f64,
                 }),
+                message: String::new(),
             }
         })
         .collect()
@@ -147,6 +148,7 @@ fn drift_records() -> Vec<FrameOutcome> {
                     geodetic: at(x, 0.0, 0.0),
                     heading_deg: 90.0,
                 }),
+                message: String::new(),
             }
         })
         .collect()
@@ -183,6 +185,8 @@ fn awkward_records() -> Vec<FrameOutcome> {
     }
     rs[4].visual = None;
     rs[4].status = "bad_image".into();
+    // A message with the characters CSV quotes, and a line break that must not split the row.
+    rs[4].message = "camera 2: \"000004_2.png\", not a PNG,\nJPEG or TIFF file".into();
     rs[6].truth = None;
     rs[6].gnss = None;
     rs
@@ -198,6 +202,7 @@ fn csv_round_trip() {
         .iter()
         .chain(&TRUTH_COLUMNS)
         .copied()
+        .chain([MESSAGE_COLUMN])
         .collect();
     assert_eq!(header, expected);
     let rows: Vec<csv::StringRecord> = rd.records().map(|r| r.unwrap()).collect();
@@ -226,6 +231,12 @@ fn csv_round_trip() {
     assert_eq!(&rows[0][col("err_h_m")], "1.000");
     assert_eq!(&rows[0][col("err_v_m")], "2.000");
     assert_eq!(&rows[4][col("status")], "bad_image");
+    assert_eq!(
+        &rows[4][col("message")],
+        "camera 2: \"000004_2.png\", not a PNG, JPEG or TIFF file"
+    );
+    assert_eq!(text.lines().count(), recs.len() + 1, "one line per frame");
+    assert!(rows[0][col("message")].is_empty());
     // Without any truth the truth columns are absent.
     let no_truth: Vec<FrameOutcome> = recs
         .into_iter()
@@ -239,7 +250,10 @@ fn csv_round_trip() {
         .next()
         .unwrap()
         .to_string();
-    assert_eq!(first, FIXES_COLUMNS.join(","));
+    assert_eq!(
+        first,
+        format!("{},{MESSAGE_COLUMN}", FIXES_COLUMNS.join(","))
+    );
 }
 
 #[test]

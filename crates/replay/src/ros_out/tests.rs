@@ -115,6 +115,7 @@ fn one_of_each_message_per_fix_with_the_fix_covariances() {
             gnss: None,
             unusable_images: None,
             truth: None,
+            message: String::new(),
         })
         .collect();
     let bytes = mcap_bytes(&drive, &records).unwrap();
