@@ -108,14 +108,52 @@ pub(super) fn pair_angle_wander(
     sum.min(radius * separation * ci.inv_near * cj.inv_near)
 }
 
+/// Whether a cell keeps its pair values and pair tables for later detection triples.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum CellCache {
+    /// Not visited by a detection triple yet (no cache buffer is set up).
+    Undecided,
+    /// The cell keeps its dense `m × m` pair values and its pair tables (charged to the
+    /// frame's [`CELL_CACHE_BUDGET_BYTES`]).
+    Stored,
+    /// The budget was spent: the cell holds no cache and builds a triple's three tables
+    /// afresh, into a scratch shared by every cell, each time a triple visits it.
+    Transient,
+}
+
+/// The bytes of pair values and pair tables that the cells of one search may keep at once
+/// (256 MiB). A cold start over a city has tens of thousands of cells of hundreds of
+/// candidates each: kept for every cell, the dense pair values alone took 9 GB of a 12 GB
+/// frame (issue #25, 150 m visibility range). Cells beyond the budget compute what a triple
+/// reads each time ([`CellCache::Transient`]); the tables' bits, and so the search's
+/// results, are the same. A prior frame's 21 cells need a few MB.
+pub(super) const CELL_CACHE_BUDGET_BYTES: usize = 1 << 28;
+
+/// The bytes a cell's cache buffers hold (their capacities).
+pub(super) fn cached_bytes(cell: &CellData) -> usize {
+    cell.pairs.capacity() * std::mem::size_of::<PairValues>()
+        + (cell.pairs_done.capacity() + cell.store.capacity()) * std::mem::size_of::<u64>()
+        + cell.slots.capacity() * std::mem::size_of::<u32>()
+}
+
 /// A search cell: its candidates seen from the centre and its lazily built pair tables.
 pub(super) struct CellData {
     pub(super) centre: Vector3<f64>,
     pub(super) cands: Vec<CellCandidate>,
-    /// What the pair tables test of each candidate pair `(i, j)`, row-major `m × m` (the
-    /// diagonal unused): one record per pair, so a table row reads one contiguous run.
-    /// Computed when a pair table first needs the pair ([`CellData::ensure_pairs`]).
+    /// Whether the buffers below are set up and kept ([`CellCache`]).
+    pub(super) cache: CellCache,
+    /// What the pair tables test of each candidate pair `(i, j)` of the candidates some
+    /// detection may be, row-major `u × u` (`u` = `used`, the diagonal unused; candidate `i`
+    /// is row and column `rows[i]`): one record per pair, so a table row reads one
+    /// contiguous run. Computed when a pair table first needs the pair
+    /// ([`CellData::ensure_pairs`]). The other candidates are in no table: with a known
+    /// vertical, 44 % of a cold start's candidates at 80 m (issue #25), whose rows and
+    /// columns are about two-thirds of an `m × m` buffer.
     pub(super) pairs: Vec<PairValues>,
+    /// Per candidate, its row and column in `pairs` ([`NO_ROW`]: no detection may be it).
+    pub(super) rows: Vec<u32>,
+    /// The candidates some detection may be: the side of `pairs`.
+    pub(super) used: usize,
     /// Which entries of `pairs` are computed: `m × words` bits, row `i` the `j`.
     pub(super) pairs_done: Vec<u64>,
     /// Per candidate: its position in the frame's shared landmarks ([`PairContext`]) and the
@@ -139,6 +177,9 @@ pub(super) struct CellData {
 
 /// A pair table not built yet.
 pub(super) const NO_TABLE: u32 = u32::MAX;
+
+/// The row in a cell's pair values of a candidate no detection may be.
+pub(super) const NO_ROW: u32 = u32::MAX;
 
 /// Pair tables a cell has room for before its store grows: a median prior frame runs five
 /// detection triples, about a dozen distinct detection pairs.
@@ -166,9 +207,11 @@ impl CellData {
             allowed,
             pairs,
             pairs_done,
+            rows,
+            used,
             ..
         } = self;
-        let (m, words) = (cands.len(), *words);
+        let (u, words) = (*used, *words);
         let allowed_b = &allowed[b * words..(b + 1) * words];
         for_each_bit(&allowed[a * words..(a + 1) * words], |i| {
             for (w, &word_b) in allowed_b.iter().enumerate() {
@@ -182,13 +225,38 @@ impl CellData {
                     missing &= missing - 1;
                     let (lo, hi) = (i.min(j), i.max(j));
                     let values = context.values(db, cands, sides, slots_shared, lo, hi);
-                    pairs[lo * m + hi] = values;
-                    pairs[hi * m + lo] = values.mirrored();
+                    let (r_lo, r_hi) = (rows[lo] as usize, rows[hi] as usize);
+                    pairs[r_lo * u + r_hi] = values;
+                    pairs[r_hi * u + r_lo] = values.mirrored();
                     bit_set(&mut pairs_done[i * words..(i + 1) * words], j);
                     bit_set(&mut pairs_done[j * words..(j + 1) * words], i);
                 }
             }
         });
+    }
+
+    /// The values of the candidate pair `(i, j)`, `i ≠ j`, computed as
+    /// [`CellData::ensure_pairs`] stores them: for the pair in database order, mirrored when
+    /// `i > j`.
+    pub(super) fn pair_values(
+        &self,
+        db: &LandmarkDb,
+        context: &PairContext,
+        i: usize,
+        j: usize,
+    ) -> PairValues {
+        let (lo, hi) = (i.min(j), i.max(j));
+        let values = context.values(db, &self.cands, &self.sides, &self.slots_shared, lo, hi);
+        if i < j { values } else { values.mirrored() }
+    }
+
+    /// Frees the cache buffers (a transient cell, or one whose cache the budget no longer
+    /// covers).
+    fn release_caches(&mut self) {
+        self.pairs = Vec::new();
+        self.pairs_done = Vec::new();
+        self.slots = Vec::new();
+        self.store = Vec::new();
     }
 
     /// The whole (built) table of the ordered detection pair `key`.
@@ -624,8 +692,7 @@ fn shared_landmarks(
 
 /// Sets up a cell whose candidates are gathered: per detection the candidates it may be
 /// (class, and with a known vertical the elevation gate, a run of `by_elevation`), its
-/// landmark indices and centre, and its pair buffers emptied (stale pair values are never
-/// read: `pairs_done`).
+/// landmark indices and centre; its cache is decided later ([`CellCache`]).
 fn prepare_cell(
     search: &Search,
     cell: &mut CellData,
@@ -680,20 +747,178 @@ fn prepare_cell(
     cell.indices.extend(cands.iter().map(|c| c.index));
     cell.centre = *centre;
     cell.words = words;
-    cell.allowed = allowed;
-    // Stale pair values are never read (`pairs_done`).
-    if cell.pairs.len() < m * m {
-        cell.pairs.resize(m * m, PairValues::DIAGONAL);
+    // Per candidate its row in the pair values: the candidates some detection may be.
+    let mut any = vec![0u64; words];
+    for d in 0..n {
+        for (w, bits) in any.iter_mut().zip(&allowed[d * words..(d + 1) * words]) {
+            *w |= bits;
+        }
     }
-    cell.pairs_done.clear();
-    cell.pairs_done.resize(m * words, 0);
-    cell.slots.clear();
-    cell.slots.resize(n * n, NO_TABLE);
-    cell.store.clear();
-    cell.store.reserve(m * words * INITIAL_PAIR_TABLES);
+    cell.rows.clear();
+    cell.rows.resize(m, NO_ROW);
+    let mut used = 0u32;
+    for_each_bit(&any, |i| {
+        cell.rows[i] = used;
+        used += 1;
+    });
+    cell.used = used as usize;
+    cell.allowed = allowed;
+    // The cache buffers are set up when a detection triple first visits the cell, if the
+    // frame's budget covers them (`Search::decide_cache`).
+    cell.cache = CellCache::Undecided;
 }
 
 impl Search<'_> {
+    /// Sets up the cache buffers of a cell a detection triple visits first, when the frame's
+    /// budget covers them (the pair values `m × m`, which of them are computed, the table
+    /// slots and room for [`INITIAL_PAIR_TABLES`] tables); else the cell is transient.
+    pub(super) fn decide_cache(&self, cell: &mut CellData) {
+        let n = self.detections.len();
+        let (m, words) = (cell.cands.len(), cell.words);
+        let u = cell.used;
+        let need = u * u * std::mem::size_of::<PairValues>()
+            + m * words * (1 + INITIAL_PAIR_TABLES) * std::mem::size_of::<u64>()
+            + n * n * std::mem::size_of::<u32>();
+        // A pooled cell brings its buffers' capacity (at most `before`), kept if stored.
+        let before = cached_bytes(cell);
+        let left = self.cache_left.get();
+        if before.saturating_add(need) > left {
+            cell.release_caches();
+            cell.cache = CellCache::Transient;
+            self.cache_transient.set(self.cache_transient.get() + 1);
+            return;
+        }
+        // Stale pair values are never read (`pairs_done`).
+        if cell.pairs.len() < u * u {
+            cell.pairs.resize(u * u, PairValues::DIAGONAL);
+        }
+        cell.pairs_done.clear();
+        cell.pairs_done.resize(m * words, 0);
+        cell.slots.clear();
+        cell.slots.resize(n * n, NO_TABLE);
+        cell.store.clear();
+        cell.store.reserve_exact(m * words * INITIAL_PAIR_TABLES);
+        cell.cache = CellCache::Stored;
+        self.charge_cache(cached_bytes(cell));
+        self.cache_stored.set(self.cache_stored.get() + 1);
+    }
+
+    /// Takes `bytes` from the frame's cache budget, and records the peak held.
+    fn charge_cache(&self, bytes: usize) {
+        let left = self.cache_left.get().saturating_sub(bytes);
+        self.cache_left.set(left);
+        let held = self.cache_budget - left;
+        self.cache_peak.set(self.cache_peak.get().max(held));
+    }
+
+    /// Makes room in a stored cell's table store for `tables` more tables, charged to the
+    /// budget; when the budget does not cover it, the cell's cache is freed (its bytes
+    /// returned to the budget) and the cell becomes transient.
+    pub(super) fn room_for_tables(&self, cell: &mut CellData, tables: usize) {
+        let size = cell.cands.len() * cell.words;
+        let (len, capacity) = (cell.store.len(), cell.store.capacity());
+        if len + tables * size <= capacity {
+            return;
+        }
+        // Doubling, as `Vec` would, but charged before it is allocated.
+        let extra = len.max(tables * size);
+        let bytes = extra * std::mem::size_of::<u64>();
+        if bytes > self.cache_left.get() {
+            let freed = cached_bytes(cell);
+            self.cache_left.set(
+                self.cache_left
+                    .get()
+                    .saturating_add(freed)
+                    .min(self.cache_budget),
+            );
+            cell.release_caches();
+            cell.cache = CellCache::Transient;
+            self.cache_stored.set(self.cache_stored.get() - 1);
+            self.cache_transient.set(self.cache_transient.get() + 1);
+            return;
+        }
+        cell.store.reserve_exact(extra);
+        let grown = (cell.store.capacity() - capacity) * std::mem::size_of::<u64>();
+        self.charge_cache(grown);
+    }
+
+    /// The landmark triples `(i, j, k)` of a cell that pass the three pair tables of the
+    /// detection triple `(a, b, c)`, into `survivors`: from the cell's kept tables (built
+    /// once), or for a transient cell from tables built into `scratch` now.
+    pub(super) fn cell_survivors(
+        &self,
+        cell: &mut CellData,
+        context: &PairContext,
+        [a, b, c]: [usize; 3],
+        survivors: &mut Vec<[usize; 3]>,
+        scratch: &mut Vec<u64>,
+    ) {
+        let n = self.detections.len();
+        let keys = [(a, b), (a, c), (b, c)];
+        if cell.cache == CellCache::Undecided {
+            self.decide_cache(cell);
+        }
+        if cell.cache == CellCache::Stored {
+            let missing = keys
+                .iter()
+                .filter(|&&(p, q)| cell.slots[p * n + q] == NO_TABLE)
+                .count();
+            self.room_for_tables(cell, missing);
+        }
+        let (m, words) = (cell.cands.len(), cell.words);
+        if cell.cache == CellCache::Stored {
+            for (p, q) in keys {
+                self.ensure_table(cell, context, p, q);
+            }
+            let tables = keys.map(|(p, q)| cell.table(p * n + q));
+            table_survivors(m, words, tables, survivors);
+        } else {
+            let size = m * words;
+            scratch.clear();
+            scratch.resize(3 * size, 0);
+            for (table, (p, q)) in scratch.chunks_exact_mut(size.max(1)).zip(keys) {
+                self.transient_table(cell, context, p, q, table);
+            }
+            let (ab, rest) = scratch.split_at(size);
+            let (ac, bc) = rest.split_at(size);
+            table_survivors(m, words, [ab, ac, bc], survivors);
+        }
+    }
+
+    /// The pair table of the ordered detection pair `(a, b)` of a transient cell, into
+    /// `table` (`m × words`, zeroed): the same tests as [`Search::ensure_table`], on pair
+    /// values computed now ([`CellData::pair_values`]) instead of kept ones.
+    pub(super) fn transient_table(
+        &self,
+        cell: &CellData,
+        context: &PairContext,
+        a: usize,
+        b: usize,
+        table: &mut [u64],
+    ) {
+        let n = self.detections.len();
+        let words = cell.words;
+        let theta = self.angles[a * n + b];
+        let tol = 2.0 * self.noise;
+        let pair_det = self.pair_det(a, b);
+        let allowed_a = &cell.allowed[a * words..(a + 1) * words];
+        let allowed_b = &cell.allowed[b * words..(b + 1) * words];
+        for_each_bit(allowed_a, |i| {
+            let row = &mut table[i * words..(i + 1) * words];
+            for_each_bit(allowed_b, |j| {
+                // The diagonal never passes (`i ≠ j` in the kept tables).
+                if i == j {
+                    return;
+                }
+                let p = cell.pair_values(self.db, context, i, j);
+                let (lo, hi) = p.det;
+                let pass = ((theta - p.angle).abs() <= tol + p.bound)
+                    & pair_det.is_none_or(|(d, margin)| (d + margin >= lo) & (d - margin <= hi));
+                row[j / 64] |= u64::from(pass) << (j % 64);
+            });
+        });
+    }
+
     /// With a known vertical: `det[up, b_a, b_b]` and how far the true value may be from it
     /// ([`det_of_bearings`]).
     pub(super) fn pair_det(&self, a: usize, b: usize) -> Option<(f64, f64)> {
@@ -707,7 +932,7 @@ impl Search<'_> {
         ))
     }
 
-    /// Builds the pair table of the ordered detection pair `(a, b)` in a cell (once).
+    /// Builds the pair table of the ordered detection pair `(a, b)` in a stored cell (once).
     pub(super) fn ensure_table(
         &self,
         cell: &mut CellData,
@@ -743,12 +968,14 @@ impl Search<'_> {
         let allowed_b = &cell.allowed[b * words..(b + 1) * words];
         // Each test is evaluated whole and its outcome OR-ed in as a bit: about one pair in
         // eight passes, at random, so a branch per test would be mispredicted often.
+        let (u, rows) = (cell.used, &cell.rows);
         for_each_bit(allowed_a, |i| {
             let row = &mut table[i * words..(i + 1) * words];
-            let pairs = &cell.pairs[i * m..(i + 1) * m];
+            let r = rows[i] as usize;
+            let pairs = &cell.pairs[r * u..(r + 1) * u];
             match pair_det {
                 Some((d, margin)) => for_each_bit(allowed_b, |j| {
-                    let p = &pairs[j];
+                    let p = &pairs[rows[j] as usize];
                     let (lo, hi) = p.det;
                     let pass = (i != j)
                         & ((theta - p.angle).abs() <= tol + p.bound)
@@ -757,10 +984,42 @@ impl Search<'_> {
                     row[j / 64] |= u64::from(pass) << (j % 64);
                 }),
                 None => for_each_bit(allowed_b, |j| {
-                    let p = &pairs[j];
+                    let p = &pairs[rows[j] as usize];
                     let pass = (i != j) & ((theta - p.angle).abs() <= tol + p.bound);
                     row[j / 64] |= u64::from(pass) << (j % 64);
                 }),
+            }
+        });
+    }
+}
+
+/// Landmark triples `(i, j, k)` of a cell (`m` candidates, `words` words per bitset) that
+/// pass the three pair tables `[ab, ac, bc]` of a detection triple `(a, b, c)`, into
+/// `survivors`.
+pub(super) fn table_survivors(
+    m: usize,
+    words: usize,
+    [ab, ac, bc]: [&[u64]; 3],
+    survivors: &mut Vec<[usize; 3]>,
+) {
+    survivors.clear();
+    for i in 0..m {
+        let ab_i = &ab[i * words..(i + 1) * words];
+        let ac_i = &ac[i * words..(i + 1) * words];
+        if ab_i.iter().all(|&w| w == 0) || ac_i.iter().all(|&w| w == 0) {
+            continue;
+        }
+        for_each_bit(ab_i, |j| {
+            let bc_j = &bc[j * words..(j + 1) * words];
+            for (wk, (&x, &y)) in ac_i.iter().zip(bc_j).enumerate() {
+                let mut bits_k = x & y;
+                while bits_k != 0 {
+                    let k = wk * 64 + bits_k.trailing_zeros() as usize;
+                    bits_k &= bits_k - 1;
+                    if k != i && k != j {
+                        survivors.push([i, j, k]);
+                    }
+                }
             }
         });
     }

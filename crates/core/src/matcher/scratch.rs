@@ -2,7 +2,7 @@
 //! `rustc_hash::FxBuildHasher`: the standard SipHash cost as much as a third of a P3P solve), the
 //! thread-local pool of cell buffers, bit sets and the crate's one shuffle.
 
-use super::pairs::CellData;
+use super::pairs::{CellCache, CellData, cached_bytes};
 use nalgebra::Vector3;
 use std::cell::RefCell;
 use std::hash::Hasher;
@@ -23,6 +23,11 @@ impl std::hash::Hash for TripleKey {
 /// has about 25 cells; a cold start's thousands are not kept).
 pub(super) const MAX_POOLED_CELLS: usize = 64;
 
+/// At most this many bytes of cache buffers are kept in a thread's pool (32 MiB): the cells of
+/// a cold start over a long visibility range hold several MB each, and 64 of them would
+/// stay allocated between frames.
+pub(super) const MAX_POOLED_BYTES: usize = 1 << 25;
+
 thread_local! {
     /// Cells of earlier frames of this thread, whose buffers the next frame reuses: filling
     /// a fresh `m × m` buffer of pair values cost about 0.15 ms of a 1.3 ms prior frame (25
@@ -39,7 +44,10 @@ pub(super) fn take_cell() -> CellData {
         .unwrap_or_else(|| CellData {
             centre: Vector3::zeros(),
             cands: Vec::new(),
+            cache: CellCache::Undecided,
             pairs: Vec::new(),
+            rows: Vec::new(),
+            used: 0,
             pairs_done: Vec::new(),
             slots_shared: Vec::new(),
             sides: Vec::new(),
@@ -51,13 +59,23 @@ pub(super) fn take_cell() -> CellData {
         })
 }
 
-/// Gives cells back to the pool (at most [`MAX_POOLED_CELLS`]); `try_with`, since a thread
+/// Gives cells back to the pool (at most [`MAX_POOLED_CELLS`] holding at most
+/// [`MAX_POOLED_BYTES`] of cache buffers; the others are freed); `try_with`, since a thread
 /// that ends drops its pool.
 pub(super) fn recycle_cells(cells: &mut Vec<CellData>) {
     let _ = CELL_POOL.try_with(|pool| {
         if let Ok(mut pool) = pool.try_borrow_mut() {
-            let room = MAX_POOLED_CELLS.saturating_sub(pool.len());
-            pool.extend(cells.drain(..).take(room));
+            let mut held: usize = pool.iter().map(cached_bytes).sum();
+            for cell in cells.drain(..) {
+                if pool.len() >= MAX_POOLED_CELLS {
+                    break;
+                }
+                let bytes = cached_bytes(&cell);
+                if held + bytes <= MAX_POOLED_BYTES {
+                    held += bytes;
+                    pool.push(cell);
+                }
+            }
         }
     });
 }

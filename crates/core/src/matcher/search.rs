@@ -6,9 +6,9 @@
 use super::azimuth::{LevelledTriple, azimuths_can_meet};
 use super::cells::cells;
 use super::conclusion::conclude;
-use super::pairs::{CellData, PairContext, cell_data};
+use super::pairs::{CELL_CACHE_BUDGET_BYTES, PairContext, cell_data};
 use super::scoring::ConclusionCache;
-use super::scratch::{Cells, TripleKey, for_each_bit, shuffle};
+use super::scratch::{Cells, TripleKey, shuffle};
 use super::{
     CORE_GROWTH, DUPLICATE_ANGLE_RAD, Detection, HYPOTHESIS_THRESHOLD_FACTOR, LandmarkDb,
     MAX_CONFIRMATION_TRIPLES, MIN_TRIPLE_ANGLE_RAD, MatchError, MatchOptions, MatchResult,
@@ -158,6 +158,23 @@ pub(super) struct Search<'a> {
     pub(super) widened_area: SearchArea,
     /// Landmark sets, refinements and scratch kept for the conclusion.
     pub(super) conclusion: ConclusionCache,
+    /// The bytes the cells may keep in pair values and tables ([`CELL_CACHE_BUDGET_BYTES`]),
+    /// what is left of it, the most held at once, and the cells stored and transient
+    /// ([`super::pairs::CellCache`]).
+    pub(super) cache_budget: usize,
+    pub(super) cache_left: std::cell::Cell<usize>,
+    pub(super) cache_peak: std::cell::Cell<usize>,
+    pub(super) cache_stored: std::cell::Cell<usize>,
+    pub(super) cache_transient: std::cell::Cell<usize>,
+}
+
+/// How a search used the cells' cache budget: the most bytes held at once, and the cells
+/// that kept their caches and those that did not (at the end of the search).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(super) struct CacheUse {
+    pub(super) peak_bytes: usize,
+    pub(super) stored_cells: usize,
+    pub(super) transient_cells: usize,
 }
 
 /// Whether `t` lies in the axis-aligned box `[min, max]` (bounds included).
@@ -198,11 +215,25 @@ pub(super) fn run(
     area: &SearchArea,
     options: &MatchOptions,
 ) -> Result<MatchResult, MatchError> {
+    run_with_cache_budget(db, detections, area, options, CELL_CACHE_BUDGET_BYTES)
+        .map(|(result, _)| result)
+}
+
+/// [`run`] with the cells' cache budget in bytes (the results do not depend on it), and how
+/// the search used it.
+pub(super) fn run_with_cache_budget(
+    db: &LandmarkDb,
+    detections: &[Detection],
+    area: &SearchArea,
+    options: &MatchOptions,
+    cache_budget: usize,
+) -> Result<(MatchResult, CacheUse), MatchError> {
+    let unused = |result: MatchResult| Ok((result, CacheUse::default()));
     validate(detections, options)?;
     let n = detections.len();
     let (centres, shape) = cells(area, options.cell_size_m)?;
     if n < 3 {
-        return Ok(MatchResult::failed(
+        return unused(MatchResult::failed(
             MatchStatus::TooFewDetections,
             n,
             format!("{n} detections; a match needs at least 3"),
@@ -214,11 +245,12 @@ pub(super) fn run(
         .collect();
     let angles = bearing_angles(&directions);
     if let Some(failed) = duplicate_detections(&angles, n) {
-        return Ok(failed);
+        return unused(failed);
     }
     let up = known_up(options)?;
     known_heading(options)?;
-    let mut search = Search::new(db, detections, directions, angles, up, area, options);
+    let mut search = Search::new(db, detections, directions, angles, up, area, options)
+        .with_cache_budget(cache_budget);
 
     // Fewer than three landmarks within reach of the whole area: no cell to visit.
     let area_centre = area.center();
@@ -227,7 +259,7 @@ pub(super) fn run(
         let mut near = Vec::new();
         db.within(&area_centre, reach, &mut near);
         if near.len() < 3 {
-            return Ok(MatchResult::failed(
+            return unused(MatchResult::failed(
                 MatchStatus::NoLandmarksInRange,
                 n,
                 NO_LANDMARKS_IN_RANGE,
@@ -237,14 +269,20 @@ pub(super) fn run(
     // The cells with candidates, nearest to the area's centre first.
     let (mut cell_data, pair_context) = cell_data(&search, centres, &area_centre, reach, &shape);
     if cell_data.is_empty() {
-        return Ok(MatchResult::failed(
+        return unused(MatchResult::failed(
             MatchStatus::NoLandmarksInRange,
             n,
             NO_LANDMARKS_IN_RANGE,
         ));
     }
     let frame = SearchPlan::new(&search, &cell_data, area, shape.radius);
-    Ok(search.rounds(&mut cell_data, &pair_context, &frame))
+    let result = search.rounds(&mut cell_data, &pair_context, &frame);
+    let cache_use = CacheUse {
+        peak_bytes: search.cache_peak.get(),
+        stored_cells: search.cache_stored.get(),
+        transient_cells: search.cache_transient.get(),
+    };
+    Ok((result, cache_use))
 }
 
 /// The angles between the detections' bearings, `n × n`, radians: computed once (the pair
@@ -401,6 +439,8 @@ impl SearchPlan {
 struct TripleWork {
     /// Landmark triples `(i, j, k)` of a cell that pass its three pair tables.
     survivors: Vec<[usize; 3]>,
+    /// The three pair tables of a transient cell ([`Search::cell_survivors`]).
+    scratch_tables: Vec<u64>,
     /// Per landmark triple of the current detection triple: its index in `to_solve` (and in
     /// `solved_ranges`). A detection triple solves about 700 distinct landmark triples over
     /// a 30 m prior: sized once, so that it does not grow by rehashing during the first
@@ -422,6 +462,7 @@ impl TripleWork {
     fn new() -> Self {
         Self {
             survivors: Vec::new(),
+            scratch_tables: Vec::new(),
             solved: HashMap::with_capacity_and_hasher(
                 SOLVED_TRIPLES_CAPACITY,
                 rustc_hash::FxBuildHasher,
@@ -524,42 +565,16 @@ fn round_triples(
     triples
 }
 
-/// Landmark triples `(i, j, k)` of a cell that pass the three pair tables of the detection
-/// triple `(a, b, c)`, into `survivors`.
-fn table_survivors(
-    cell: &CellData,
-    n: usize,
-    [a, b, c]: [usize; 3],
-    survivors: &mut Vec<[usize; 3]>,
-) {
-    let words = cell.words;
-    survivors.clear();
-    let ab = cell.table(a * n + b);
-    let ac = cell.table(a * n + c);
-    let bc = cell.table(b * n + c);
-    for i in 0..cell.cands.len() {
-        let ab_i = &ab[i * words..(i + 1) * words];
-        let ac_i = &ac[i * words..(i + 1) * words];
-        if ab_i.iter().all(|&w| w == 0) || ac_i.iter().all(|&w| w == 0) {
-            continue;
-        }
-        for_each_bit(ab_i, |j| {
-            let bc_j = &bc[j * words..(j + 1) * words];
-            for (wk, (&x, &y)) in ac_i.iter().zip(bc_j).enumerate() {
-                let mut bits_k = x & y;
-                while bits_k != 0 {
-                    let k = wk * 64 + bits_k.trailing_zeros() as usize;
-                    bits_k &= bits_k - 1;
-                    if k != i && k != j {
-                        survivors.push([i, j, k]);
-                    }
-                }
-            }
-        });
-    }
-}
-
 impl Search<'_> {
+    /// The search with a cache budget of `bytes` instead of [`CELL_CACHE_BUDGET_BYTES`].
+    fn with_cache_budget(self, bytes: usize) -> Self {
+        self.cache_left.set(bytes);
+        Self {
+            cache_budget: bytes,
+            ..self
+        }
+    }
+
     /// A search over `db` for `detections` (their unit `directions` and pairwise `angles`),
     /// with the rig's `up` when known.
     fn new<'a>(
@@ -571,6 +586,7 @@ impl Search<'_> {
         area: &SearchArea,
         options: &'a MatchOptions,
     ) -> Search<'a> {
+        let cache_budget = CELL_CACHE_BUDGET_BYTES;
         let position_margin = position_margin(options);
         Search {
             db,
@@ -592,6 +608,11 @@ impl Search<'_> {
                 horizontal_radius_m: area.horizontal_radius_m.map(|r| r + position_margin),
             },
             conclusion: ConclusionCache::default(),
+            cache_budget,
+            cache_left: std::cell::Cell::new(cache_budget),
+            cache_peak: std::cell::Cell::new(0),
+            cache_stored: std::cell::Cell::new(0),
+            cache_transient: std::cell::Cell::new(0),
         }
     }
 
@@ -629,7 +650,7 @@ impl Search<'_> {
                 &frame.allowed_counts,
             );
             if self.up.is_none() {
-                self.order_by_sampled_cost(cells, context, &mut triples, &mut work.survivors);
+                self.order_by_sampled_cost(cells, context, &mut triples, &mut work);
             }
             // The next triple: a confirmation triple of the best pose when one is due (see
             // `Search::confirmation_triples`), else the next of the round's triples.
@@ -675,12 +696,7 @@ impl Search<'_> {
                         limit,
                     );
                     if candidates.len() > 1 {
-                        self.order_by_sampled_cost(
-                            cells,
-                            context,
-                            &mut candidates,
-                            &mut work.survivors,
-                        );
+                        self.order_by_sampled_cost(cells, context, &mut candidates, &mut work);
                     }
                     confirmation = candidates.first().copied();
                     confirmations_tried.extend(confirmation);
@@ -719,18 +735,20 @@ impl Search<'_> {
         cells: &mut Cells,
         context: &PairContext,
         triples: &mut [[usize; 3]],
-        survivors: &mut Vec<[usize; 3]>,
+        work: &mut TripleWork,
     ) {
-        let n = self.detections.len();
         let stride = cells.len().div_ceil(COST_SAMPLE_CELLS).max(1);
         let mut costs: Vec<(usize, [usize; 3])> = triples.iter().map(|&t| (0, t)).collect();
         for cell in cells.iter_mut().step_by(stride) {
             for (cost, [a, b, c]) in &mut costs {
-                for (p, q) in [(*a, *b), (*a, *c), (*b, *c)] {
-                    self.ensure_table(cell, context, p, q);
-                }
-                table_survivors(cell, n, [*a, *b, *c], survivors);
-                *cost += survivors.len();
+                self.cell_survivors(
+                    cell,
+                    context,
+                    [*a, *b, *c],
+                    &mut work.survivors,
+                    &mut work.scratch_tables,
+                );
+                *cost += work.survivors.len();
             }
         }
         costs.sort_by_key(|&(cost, _)| cost);
@@ -751,8 +769,6 @@ impl Search<'_> {
         triple: &DetectionTriple,
         work: &mut TripleWork,
     ) -> bool {
-        let n = self.detections.len();
-        let [a, b, c] = triple.detections;
         let db = self.db;
         let radius = frame.radius;
         work.solved.clear();
@@ -760,10 +776,13 @@ impl Search<'_> {
         work.to_solve.clear();
         let mut budget_spent = false;
         'cells: for (cell_index, cell) in cells.iter_mut().enumerate() {
-            for (p, q) in [(a, b), (a, c), (b, c)] {
-                self.ensure_table(cell, context, p, q);
-            }
-            table_survivors(cell, n, triple.detections, &mut work.survivors);
+            self.cell_survivors(
+                cell,
+                context,
+                triple.detections,
+                &mut work.survivors,
+                &mut work.scratch_tables,
+            );
             let cands = &cell.cands;
             let centre = &cell.centre;
             for &[i, j, k] in &work.survivors {
@@ -922,5 +941,177 @@ impl Search<'_> {
     /// the prior: a hypothesis outside it, e.g. one that refinement moved away, is not a fix.
     pub(super) fn within_area(&self, pose: &Pose) -> bool {
         self.widened_area.contains(&pose.translation.vector)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::matcher::DbLandmark;
+    use crate::matcher::pairs::{CellCache, PairValues};
+    use rand::RngExt;
+    use vgps_geometry::geometry::Ray;
+
+    /// Building corners at random on a `side`-metre square (heights 3–25 m, exact survey),
+    /// a rig at the square's centre 2 m up (rig frame = world frame, z up), and exact
+    /// bearings to its 15 nearest landmarks within 70 m plus three stray lights above the
+    /// horizon.
+    fn scene(seed: u64, count: usize, side: f64) -> (LandmarkDb, Vec<Detection>, Vector3<f64>) {
+        let mut r = vgps_geometry::synthetic::rng(seed);
+        let landmarks: Vec<DbLandmark> = (0..count)
+            .map(|k| DbLandmark {
+                id: format!("L{k}"),
+                position_in_world: Vector3::new(
+                    r.random_range(0.0..side),
+                    r.random_range(0.0..side),
+                    r.random_range(3.0..25.0),
+                ),
+                class: None,
+                sigma_m: 0.0,
+            })
+            .collect();
+        let rig = Vector3::new(0.5 * side, 0.5 * side, 2.0);
+        let mut near: Vec<(f64, Vector3<f64>)> = landmarks
+            .iter()
+            .map(|l| ((l.position_in_world - rig).norm(), l.position_in_world))
+            .filter(|&(d, _)| d < 70.0)
+            .collect();
+        near.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let mut detections: Vec<Detection> = near
+            .iter()
+            .take(15)
+            .map(|(d, p)| {
+                Detection::new(Ray {
+                    origin: Vector3::zeros(),
+                    direction: (p - rig) / *d,
+                })
+            })
+            .collect();
+        for _ in 0..3 {
+            let mut v = vgps_geometry::synthetic::random_unit_vector(&mut r);
+            v.z = v.z.abs();
+            detections.push(Detection::new(Ray {
+                origin: Vector3::zeros(),
+                direction: v,
+            }));
+        }
+        let db = LandmarkDb::new(landmarks).expect("a valid database");
+        (db, detections, rig)
+    }
+
+    fn upright() -> MatchOptions {
+        MatchOptions {
+            up_in_rig: Some((Vector3::z(), 4f64.to_radians())),
+            ..MatchOptions::default()
+        }
+    }
+
+    /// The same cold start with every cell's cache kept, with none kept and with a budget
+    /// that covers part of the cells gives the same result; the bytes held never exceed the
+    /// budget.
+    #[test]
+    fn a_cold_start_gives_the_same_result_whatever_the_cache_budget() {
+        let (db, detections, rig) = scene(31, 300, 400.0);
+        let area = SearchArea::over_landmarks(&db, 0.0, 1.0, 3.0).expect("an area");
+        let options = upright();
+        let run = |budget| {
+            run_with_cache_budget(&db, &detections, &area, &options, budget)
+                .expect("a valid search")
+        };
+        let (full, full_use) = run(usize::MAX);
+        assert_eq!(full.status, MatchStatus::Ok, "{}", full.message);
+        let estimate = full.estimate.as_ref().expect("a fix");
+        let error = (estimate.world_from_rig.translation.vector - rig).norm();
+        assert!(error < 0.5, "{error} m from the rig");
+        assert!(full.cells > 1_000, "{} cells", full.cells);
+        assert_eq!(full_use.transient_cells, 0);
+        assert!(full_use.stored_cells > 1_000, "{full_use:?}");
+
+        let (none, none_use) = run(0);
+        assert_eq!(none, full);
+        assert_eq!(none_use.stored_cells, 0);
+        assert_eq!(none_use.peak_bytes, 0);
+        assert!(none_use.transient_cells > 1_000, "{none_use:?}");
+
+        let part = full_use.peak_bytes / 4;
+        let (some, some_use) = run(part);
+        assert_eq!(some, full);
+        assert!(some_use.stored_cells > 0, "{some_use:?}");
+        assert!(some_use.transient_cells > 0, "{some_use:?}");
+        assert!(some_use.peak_bytes <= part, "{some_use:?} over {part}");
+    }
+
+    /// Per cell, every pair table built from the kept (dense) pair values equals the one
+    /// built from values computed on the spot, and every kept value equals the one computed
+    /// on the spot; in the cell nearest the rig, the true landmarks of two detections pass.
+    #[test]
+    fn transient_tables_and_pair_values_equal_the_kept_ones() {
+        let (db, detections, rig) = scene(32, 200, 300.0);
+        let options = upright();
+        let area = SearchArea::around(&rig, 30.0, 1.0).expect("an area");
+        let directions: Vec<Vector3<f64>> = detections.iter().map(|d| d.ray.direction).collect();
+        let angles = bearing_angles(&directions);
+        let up = known_up(&options).expect("a valid up");
+        let search = Search::new(&db, &detections, directions, angles, up, &area, &options)
+            .with_cache_budget(usize::MAX);
+        let (centres, shape) = cells(&area, options.cell_size_m).expect("cells");
+        let reach = area_reach(&area, shape.radius, &options);
+        let (mut cells, context) = cell_data(&search, centres, &area.center(), reach, &shape);
+        assert!(cells.len() > 10, "{} cells", cells.len());
+        let n = detections.len();
+        let mut transient = Vec::new();
+        let (mut tables, mut passing) = (0, 0);
+        for cell in cells.iter_mut() {
+            search.decide_cache(cell);
+            assert_eq!(cell.cache, CellCache::Stored);
+            let (m, words) = (cell.cands.len(), cell.words);
+            for a in 0..n {
+                for b in (0..n).filter(|&b| b != a) {
+                    search.room_for_tables(cell, 1);
+                    search.ensure_table(cell, &context, a, b);
+                    transient.clear();
+                    transient.resize(m * words, 0);
+                    search.transient_table(cell, &context, a, b, &mut transient);
+                    assert_eq!(cell.table(a * n + b), &transient[..]);
+                    tables += 1;
+                    passing += transient.iter().map(|w| w.count_ones()).sum::<u32>();
+                }
+            }
+            for i in 0..m {
+                for j in (0..m).filter(|&j| j != i) {
+                    if cell.pairs_done[i * words + j / 64] >> (j % 64) & 1 == 0 {
+                        continue;
+                    }
+                    let (ri, rj) = (cell.rows[i] as usize, cell.rows[j] as usize);
+                    let kept: PairValues = cell.pairs[ri * cell.used + rj];
+                    let now = cell.pair_values(&db, &context, i, j);
+                    assert_eq!(kept.angle.to_bits(), now.angle.to_bits());
+                    assert_eq!(kept.bound.to_bits(), now.bound.to_bits());
+                    assert_eq!(kept.det.0.to_bits(), now.det.0.to_bits());
+                    assert_eq!(kept.det.1.to_bits(), now.det.1.to_bits());
+                }
+            }
+        }
+        assert!(
+            tables > 1_000 && passing > 1_000,
+            "{tables} tables, {passing} bits"
+        );
+        // The known answer: from the cell nearest the rig, detection 0 and 1 (the two
+        // nearest landmarks) are their true landmarks.
+        let nearest = cells
+            .iter()
+            .min_by(|x, y| (x.centre - rig).norm().total_cmp(&(y.centre - rig).norm()))
+            .expect("a cell");
+        let truth = |d: usize| {
+            (0..nearest.cands.len())
+                .find(|&c| {
+                    let l = db.landmarks()[nearest.cands[c].index].position_in_world;
+                    ((l - rig).normalize() - detections[d].ray.direction).norm() < 1e-9
+                })
+                .expect("the true landmark is a candidate")
+        };
+        let (i, j) = (truth(0), truth(1));
+        let row = &nearest.table(1)[i * nearest.words..(i + 1) * nearest.words];
+        assert_eq!(row[j / 64] >> (j % 64) & 1, 1, "the true pair passes");
     }
 }
