@@ -2,7 +2,7 @@
 //! the typed errors of bad input (`vgps::imaging::formats`).
 use image::{ImageEncoder, Luma, Rgb};
 use std::path::Path;
-use vgps::imaging::formats::{jpeg_frame_header, scale16};
+use vgps::imaging::formats::{jpeg_frame_header, scale16, to_luma8};
 use vgps::imaging::{DecodeLimits, ImageFormat, ImagingError, decode_image, read_image};
 
 fn limits() -> DecodeLimits {
@@ -61,6 +61,41 @@ fn baseline_colour_jpeg_decodes_to_rec601_luma() {
         .sum::<f64>()
         / (64.0 * 48.0);
     assert!(rec709 > 2.0 * error, "709 {rec709} vs 601 {error}");
+}
+
+/// The luma-only JPEG path (the Y plane, no chroma upsampling or colour conversion) equals
+/// the full colour decode (the `image` crate's RGB) converted with the documented Rec. 601
+/// weights within ±1 DN wherever no RGB channel clips at 0 or 255 (there the colour
+/// decode loses what the Y plane keeps): the rounding of R, G and B and of the weights.
+#[test]
+fn luma_only_jpeg_decode_equals_the_colour_decode_converted() {
+    // Mid-range colours (no clipping) with edges and a gradient, 4:2:0 chroma at quality 90.
+    let rgb = image::RgbImage::from_fn(96, 64, |x, y| {
+        let block = if (x / 16 + y / 16) % 2 == 0 { 40 } else { 0 };
+        Rgb([
+            (60 + x + block) as u8,
+            (70 + 2 * y) as u8,
+            (150 - x / 2 + block / 2) as u8,
+        ])
+    });
+    for (picture, quality) in [(&rgb, 90u8), (&rgb, 60), (&gradient(), 95)] {
+        let bytes = jpeg(picture, quality);
+        let luma = decode_image(&bytes, &limits()).expect("luma decode");
+        let colour = image::load_from_memory_with_format(&bytes, image::ImageFormat::Jpeg)
+            .expect("colour decode")
+            .to_rgb8();
+        let converted = to_luma8(&image::DynamicImage::ImageRgb8(colour.clone()));
+        let (mut compared, mut largest) = (0, 0i32);
+        for ((y, c), p) in luma.pixels().zip(converted.pixels()).zip(colour.pixels()) {
+            if p.0.iter().any(|&v| v == 0 || v == 255) {
+                continue;
+            }
+            compared += 1;
+            largest = largest.max((i32::from(y[0]) - i32::from(c[0])).abs());
+        }
+        assert!(compared > 1000, "{compared} pixels compared");
+        assert!(largest <= 1, "quality {quality}: max |ΔDN| = {largest}");
+    }
 }
 
 #[test]

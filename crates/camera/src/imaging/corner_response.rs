@@ -155,17 +155,7 @@ impl Scratch {
             let (xx, rest) = self.sums.split_at(w);
             let (yy, xy) = rest.split_at(w);
             let out = &mut self.response[v * w..(v + 1) * w];
-            for (o, ((sxx, syy), sxy)) in out.iter_mut().zip(xx.iter().zip(yy).zip(xy)) {
-                if (*sxx).min(*syy) < skip_below {
-                    *o = f32::NEG_INFINITY;
-                    continue;
-                }
-                let a = (*sxx as f32 / 64.0) / count;
-                let c = (*syy as f32 / 64.0) / count;
-                let b = (*sxy as f32 / 64.0) / count;
-                let half = 0.5 * (a + c);
-                *o = half - (0.25 * (a - c) * (a - c) + b * b).sqrt();
-            }
+            eigen_row(out, xx, yy, xy, count, skip_below);
             if v + 1 < h {
                 // Slide the window down a row: exact in integers, so no drift.
                 let (enter, leave) = ((v + radius + 1).min(h - 1), v.saturating_sub(radius));
@@ -175,6 +165,46 @@ impl Scratch {
                     *s += a - b;
                 }
             }
+        }
+    }
+}
+
+/// Lanes of [`eigen_row`]'s chunks: a whole chunk of skipped pixels (most of a day image)
+/// costs one vectorised comparison, and a chunk with a possible candidate is computed in
+/// full without a branch per pixel (so that the compiler vectorises it too).
+const EIGEN_CHUNK: usize = 16;
+
+/// The responses of one row from the window sums `xx`, `yy`, `xy` (of `count` pixels):
+/// the smaller eigenvalue, or `−∞` where the smaller diagonal sum is below `skip_below`.
+fn eigen_row(out: &mut [f32], xx: &[i32], yy: &[i32], xy: &[i32], count: f32, skip_below: i32) {
+    let eigen = |sxx: i32, syy: i32, sxy: i32| {
+        let a = (sxx as f32 / 64.0) / count;
+        let c = (syy as f32 / 64.0) / count;
+        let b = (sxy as f32 / 64.0) / count;
+        let half = 0.5 * (a + c);
+        let r = half - (0.25 * (a - c) * (a - c) + b * b).sqrt();
+        if sxx.min(syy) < skip_below {
+            f32::NEG_INFINITY
+        } else {
+            r
+        }
+    };
+    let chunks = out
+        .chunks_mut(EIGEN_CHUNK)
+        .zip(xx.chunks(EIGEN_CHUNK))
+        .zip(yy.chunks(EIGEN_CHUNK).zip(xy.chunks(EIGEN_CHUNK)));
+    for ((o, xx), (yy, xy)) in chunks {
+        // `fold`, not `any`: no early exit, so one vector comparison per chunk.
+        let live = xx
+            .iter()
+            .zip(yy)
+            .fold(false, |live, (a, c)| live | ((*a).min(*c) >= skip_below));
+        if !live {
+            o.fill(f32::NEG_INFINITY);
+            continue;
+        }
+        for (o, ((a, c), b)) in o.iter_mut().zip(xx.iter().zip(yy).zip(xy)) {
+            *o = eigen(*a, *c, *b);
         }
     }
 }
