@@ -438,7 +438,7 @@ fn usage_errors_exit_2() {
 }
 
 #[test]
-fn demo_simulates_and_replays_the_reference_drive() {
+fn demo_simulates_and_replays_the_reference_drive_and_the_night_and_day_images() {
     let dir = tempfile::tempdir().unwrap();
     let out_dir = dir.path().join("demo");
     let out = vgps(&[
@@ -484,6 +484,53 @@ fn demo_simulates_and_replays_the_reference_drive() {
     );
     let h = &night["visual_vs_truth"]["horizontal_m"];
     assert!(h["cep50"].as_f64().unwrap() <= 0.05, "{h}");
+    // One JSON document: each image stage's report under its own key.
+    assert_eq!(report["night_replay"], night);
+    // The day stage: building corners found in JPEG images, the vertex detector.
+    let day: Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("day-replay/report.json")).unwrap())
+            .unwrap();
+    assert_eq!(report["day_replay"], day);
+    assert_eq!(day["frames"], 56, "{day}");
+    assert_eq!(day["images"]["frames"], day["frames"], "{day}");
+    assert_eq!(day["images"]["unusable_images"], 0, "{day}");
+    let jpegs = std::fs::read_dir(out_dir.join("day/images"))
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .is_ok_and(|e| e.path().extension().is_some_and(|x| x == "jpg"))
+        })
+        .count();
+    assert_eq!(jpegs, 56 * 6);
+    // Issue 26's targets for day drives from images: ≥ 95 % of the frames fixed, CEP50
+    // ≤ 5 cm, CEP95 ≤ 25 cm, no `ok` fix more than 5 m off.
+    let (ok, frames, worst_ok_m) = ok_fixes(&out_dir.join("day-replay/fixes.csv"));
+    assert_eq!(frames, 56);
+    assert!(ok as f64 >= 0.95 * frames as f64, "{ok} of {frames} ok");
+    assert!(worst_ok_m <= 5.0, "an ok fix {worst_ok_m} m off");
+    let h = &day["visual_vs_truth"]["horizontal_m"];
+    assert!(h["cep50"].as_f64().unwrap() <= 0.05, "{h}");
+    assert!(h["cep95"].as_f64().unwrap() <= 0.25, "{h}");
+}
+
+/// The `ok` rows of a `fixes.csv`, its rows, and the largest horizontal error of an `ok` row
+/// against the truth (metres).
+fn ok_fixes(path: &Path) -> (usize, usize, f64) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let column = |name: &str| header.iter().position(|c| *c == name).unwrap();
+    let (status, err_h) = (column("status"), column("err_h_m"));
+    let (mut ok, mut frames, mut worst) = (0, 0, 0.0f64);
+    for line in lines {
+        let fields: Vec<&str> = line.split(',').collect();
+        frames += 1;
+        if fields[status] == "ok" {
+            ok += 1;
+            worst = worst.max(fields[err_h].parse().unwrap());
+        }
+    }
+    (ok, frames, worst)
 }
 
 /// Pixel observations through the shipped Ladybug2 calibration: the rays start at the

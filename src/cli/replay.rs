@@ -142,6 +142,19 @@ pub fn run(
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> Result<(), CliError> {
+    run_report(settings, out, err).map(|_| ())
+}
+
+/// [`run`], returning the report's statistics (what `report.json` holds): `vgps demo`
+/// builds its own summary from them.
+///
+/// # Errors
+/// As [`run`].
+pub fn run_report(
+    settings: &ReplaySettings,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Result<Report, CliError> {
     // An MCAP recording is imported into a temporary drive, removed when `imported` drops.
     let imported = if super::import::is_mcap(&settings.drive) {
         Some(super::import::mcap_to_temp_drive(
@@ -272,7 +285,8 @@ pub fn run(
         vgps_replay::report::write_outputs_with(out_dir, &info, &records, &extras)
             .map_err(|e| CliError::Output(std::io::Error::other(e.to_string())))?;
     super::robot_out::write_mcap(&settings.robot, &info, &records)?;
-    write_summary(&report, settings, out_dir, out)
+    write_summary(&report, settings, out_dir, out)?;
+    Ok(report)
 }
 
 /// Writes the drive's warnings (manifest, skipped NMEA lines) to `err`.
