@@ -268,12 +268,7 @@ fn write_side_by_side(
     }));
     for (label, length_m, r) in rows {
         let ok = r.status_counts.get("ok").copied().unwrap_or(0);
-        let (cep50, cep95) = r
-            .visual_vs_truth
-            .as_ref()
-            .map_or((f64::NAN, f64::NAN), |c| {
-                (c.horizontal_m.cep50, c.horizontal_m.cep95)
-            });
+        let horizontal = r.visual_vs_truth.as_ref().map(|c| &c.horizontal_m);
         writeln!(
             out,
             "  {label:<30} {:>4.0} m  {:>6}  {:>5} {:>5}  {:>8}  {:>8}",
@@ -281,20 +276,17 @@ fn write_side_by_side(
             r.frames,
             ok,
             format!("{:.0}%", 100.0 * ok as f64 / r.frames.max(1) as f64),
-            metres(cep50),
-            metres(cep95),
+            metres(horizontal.map(|h| h.cep50)),
+            metres(horizontal.map(|h| h.cep95)),
         )?;
     }
     Ok(())
 }
 
 /// A distance with millimetres, or `-` when there is none.
-fn metres(x: f64) -> String {
-    if x.is_finite() {
-        format!("{x:.3}")
-    } else {
-        "-".to_string()
-    }
+fn metres(x: Option<f64>) -> String {
+    x.filter(|v| v.is_finite())
+        .map_or_else(|| "-".to_string(), |v| format!("{v:.3}"))
 }
 
 /// The demo's JSON document: the reference replay's report, its keys in `report.json`'s
