@@ -349,6 +349,7 @@ fn replay_settings(
         from_images,
         image_size: None,
         detector,
+        direction: Default::default(),
         gnss: Default::default(),
         mcap: Default::default(),
         robot: Default::default(),

@@ -16,14 +16,16 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use vgps_camera::imaging::ImagingError;
 use vgps_core::localizer::{
-    Frame, GnssPosition, LandmarkMap, Localizer, LocalizerFix, LocalizerOptions,
+    Frame, GnssPosition, LandmarkMap, Localizer, LocalizerFix, LocalizerOptions, LocalizerStatus,
 };
 use vgps_core::matcher::{DEFAULT_VISIBILITY_RANGE_M, MatchOptions};
 use vgps_import::mcap_import::{FrameStream, RecordingImages};
 use vgps_replay::drive::gnss::gnss_at;
 use vgps_replay::drive::{Drive, FrameStatus};
 use vgps_replay::frame_images::{DetectorKind, ImageDetector};
-use vgps_replay::report::{DriveInfo, FrameOutcome, Report, Truth, VisualFix, summary_table};
+use vgps_replay::report::{
+    BackwardFix, DriveInfo, FrameOutcome, Report, Truth, VisualFix, combine_passes, summary_table,
+};
 
 /// The status of a frame none of whose images could be used.
 pub const BAD_IMAGE_STATUS: &str = "bad_image";
@@ -37,6 +39,18 @@ pub enum OutputFormat {
     Text,
     /// The `report.json` summary, for scripts.
     Json,
+}
+
+/// The passes of a replay over the drive's frames.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Direction {
+    /// Frames in time order, as a receiver would have localized them live.
+    #[default]
+    Forward,
+    /// A forward pass, then a backward pass (frames in reverse order) that fills the frames
+    /// the forward pass left without a fix: after a survey gap or a lost track, the backward
+    /// pass arrives tracking from the other side (docs/replay-report.md).
+    Combined,
 }
 
 /// Arguments of `vgps replay`.
@@ -95,6 +109,10 @@ pub struct ReplayArgs {
     /// corners, day); see `vgps detect --detector`.
     #[arg(long, value_enum, default_value = "point")]
     pub detector: super::detect::DetectorArg,
+    /// `forward`: frames in time order, as live; `combined`: then a backward pass fills
+    /// the frames left without a fix (offline post-processing).
+    #[arg(long, value_enum, default_value = "forward")]
+    pub direction: Direction,
     /// Satellite GPS from another file.
     #[command(flatten)]
     pub gnss: super::gnss_input::GnssInputArgs,
@@ -237,6 +255,9 @@ pub fn run_report(
         bar
     });
     let mut records = Vec::with_capacity(frames.len());
+    // The localizer's input of every frame, for the backward pass.
+    let combined = settings.direction == Direction::Combined;
+    let mut kept_frames: Vec<Option<Frame>> = Vec::new();
     let detector = ImageDetector::new(settings.detector, drive.rig());
     let mut live = super::robot_out::LiveStream::start(&settings.robot, err);
     let mut used = std::collections::BTreeMap::new();
@@ -261,9 +282,12 @@ pub fn run_report(
                 imu: settings.imu,
                 used: &mut used,
             };
-            let record = step.record(f, d, err);
+            let (record, frame) = step.record(f, d, err);
             live.send(&record, err);
             records.push(record);
+            if combined {
+                kept_frames.push(frame);
+            }
         }
         if let Some(bar) = &progress {
             bar.inc(batch.len() as u64);
@@ -271,6 +295,26 @@ pub fn run_report(
     }
     if let Some(bar) = progress {
         bar.finish_and_clear();
+    }
+    if combined {
+        let mut backward = Localizer::new(Arc::clone(&rig), Arc::clone(&map), options)
+            .map_err(|e| CliError::Internal(e.to_string()))?;
+        let fixes = backward_pass(&mut backward, &kept_frames, &records);
+        for (r, b) in records.iter().zip(&fixes) {
+            if let (None, Some(landmarks)) = (&r.visual, b.as_ref().and_then(|b| b.1.as_ref())) {
+                used.insert(r.frame, landmarks.clone());
+            }
+        }
+        let fixes: Vec<Option<BackwardFix>> = fixes.into_iter().map(|b| b.map(|b| b.0)).collect();
+        let c = combine_passes(&mut records, &fixes, LocalizerStatus::Ok.as_str());
+        if !settings.quiet {
+            let _ = writeln!(
+                err,
+                "vgps: combined: forward pass {} fixes, backward pass {}, {} frames filled by \
+                 the backward pass, {} fixed by both at positions that disagree",
+                c.forward, c.backward, c.filled, c.disagreeing
+            );
+        }
     }
     let info = DriveInfo {
         name: drive_name(&settings.drive),
@@ -344,12 +388,13 @@ impl FrameStep<'_, '_> {
         f: &vgps_replay::drive::FrameRecord,
         d: FrameDetections<'_>,
         err: &mut dyn Write,
-    ) -> FrameOutcome {
+    ) -> (FrameOutcome, Option<Frame>) {
         let gnss = gnss_at(self.drive.gnss(), f.time_s);
         let truth = self.drive.truth_of(f.frame).map(|t| Truth {
             geodetic: t.position,
             heading_deg: vgps_sim::simulate::heading_deg(&t.enu_from_rig),
         });
+        let mut localized = None;
         let (status, visual, unusable_images, message) = match d {
             FrameDetections::Bad {
                 message,
@@ -376,11 +421,10 @@ impl FrameStep<'_, '_> {
                 } else {
                     None
                 };
-                let fix = self.localizer.process(
-                    &Frame::from_detections(f.time_s, &dets, self.map, prior).with_attitude(
-                        self.imu.then(|| self.drive.attitude_at(f.time_s)).flatten(),
-                    ),
-                );
+                let frame = Frame::from_detections(f.time_s, &dets, self.map, prior)
+                    .with_attitude(self.imu.then(|| self.drive.attitude_at(f.time_s)).flatten());
+                let fix = self.localizer.process(&frame);
+                localized = Some(frame);
                 if let Some(e) = &fix.estimate {
                     self.used.insert(f.frame, e.landmarks.clone());
                 }
@@ -392,7 +436,7 @@ impl FrameStep<'_, '_> {
                 )
             }
         };
-        FrameOutcome {
+        let outcome = FrameOutcome {
             frame: f.frame,
             time_s: f.time_s,
             status,
@@ -401,8 +445,48 @@ impl FrameStep<'_, '_> {
             unusable_images,
             truth,
             message,
-        }
+        };
+        (outcome, localized)
     }
+}
+
+/// The backward pass of `--direction combined`: the frames localized in reverse order by
+/// their own localizer ([`Localizer::process_backward`]), in the records' order (`None`
+/// for a frame without usable detections), each with the surveyed landmarks its fix used.
+///
+/// A frame the forward pass fixed gives its fix as the backward pass's prior, in place of
+/// the satellite position: where the backward track is lost, it is found again at once
+/// around the forward fix instead of waiting for a cold start, so the pass costs about what
+/// tracking costs. Frames the forward pass did not fix keep their satellite prior, if any.
+fn backward_pass(
+    localizer: &mut Localizer,
+    frames: &[Option<Frame>],
+    forward: &[FrameOutcome],
+) -> Vec<Option<(BackwardFix, Option<Vec<String>>)>> {
+    let mut out = vec![None; frames.len()];
+    for (k, (frame, record)) in frames.iter().zip(forward).enumerate().rev() {
+        let Some(frame) = frame else { continue };
+        let seed = record
+            .visual
+            .as_ref()
+            .map(|v| GnssPosition {
+                position: v.geodetic,
+            })
+            .or(frame.gnss);
+        let fix = localizer.process_backward(&Frame {
+            gnss: seed,
+            ..frame.clone()
+        });
+        let landmarks = fix.estimate.as_ref().map(|e| e.landmarks.clone());
+        out[k] = Some((
+            BackwardFix {
+                visual: visual_of(&fix),
+                message: fix.message,
+            },
+            landmarks,
+        ));
+    }
+    out
 }
 
 fn write_summary(

@@ -123,6 +123,8 @@ pub struct ReplaySettings {
     pub image_size: Option<(u32, u32)>,
     /// The lamp detector of `--from-images`.
     pub detector: vgps_replay::frame_images::DetectorKind,
+    /// Forward only, or forward then backward (`--direction`).
+    pub direction: super::replay::Direction,
     /// Satellite GPS from another file.
     pub gnss: GnssInputArgs,
     /// The options of an MCAP recording given as the drive.
@@ -323,6 +325,7 @@ impl TryFrom<ReplayArgs> for ReplaySettings {
             from_images: a.from_images,
             image_size: a.image_size,
             detector: a.detector.into(),
+            direction: a.direction,
             gnss: a.gnss,
             mcap: a.mcap,
             robot: a.robot,

@@ -742,6 +742,22 @@ impl Localizer {
         fix
     }
 
+    /// Processes one frame of a drive localized backwards: the frames given in decreasing
+    /// time order, as the second pass of an offline replay (`vgps replay --direction
+    /// combined`). The localizer runs in negated time, so its motion model, gaps and
+    /// intervals work unchanged (the velocity it estimates is the reversed one); the fix
+    /// is returned with the frame's own time. Use a localizer for one direction only: a
+    /// forward frame after backward ones starts over, like any step back in time.
+    pub fn process_backward(&mut self, frame: &Frame) -> LocalizerFix {
+        let reversed = Frame {
+            time_s: -frame.time_s,
+            ..frame.clone()
+        };
+        let mut fix = self.process(&reversed);
+        fix.time_s = frame.time_s;
+        fix
+    }
+
     /// Tracking from the motion state: the fix associated around the predicted pose, with
     /// its candidates, or why tracking gave none (reported with the matcher's reason).
     fn track_from(

@@ -53,6 +53,7 @@
 
 mod atomic;
 mod charts;
+mod combine;
 mod csv_out;
 mod derived;
 mod html;
@@ -64,6 +65,9 @@ pub(crate) mod time;
 mod tracks;
 
 pub use atomic::write_atomic;
+pub use combine::{
+    BackwardFix, Combination, DISAGREEMENT_CHI2, DISAGREEMENT_FLOOR_M, combine_passes,
+};
 pub use csv_out::{FIXES_COLUMNS, IMAGE_COLUMNS, MESSAGE_COLUMN, TRUTH_COLUMNS, fixes_csv};
 pub use html::{MapExtras, VENDOR_BEGIN, VENDOR_END, report_html, report_html_with};
 pub use nmea::{

@@ -217,7 +217,10 @@ fn rate(k: u64, n: u64) -> Option<f64> {
 }
 
 /// `eᵀ Σ⁻¹ e` for a symmetric positive-definite 2×2 `Σ`; `None` otherwise.
-fn mahalanobis2(e: &nalgebra::Vector2<f64>, cov: &nalgebra::Matrix2<f64>) -> Option<f64> {
+pub(crate) fn mahalanobis2(
+    e: &nalgebra::Vector2<f64>,
+    cov: &nalgebra::Matrix2<f64>,
+) -> Option<f64> {
     if !cov.iter().all(|x| x.is_finite()) {
         return None;
     }
