@@ -624,7 +624,9 @@ fn _run_cli(py: Python<'_>, args: Vec<String>) -> PyResult<String> {
 /// in the map's ENU frame at `origin`), `enu_from_rig_wxyz` (4,), `heading_pitch_roll_deg`
 /// (3,), `covariance` (6, 6: `[δp m, δθ rad]` in the map's ENU), `rms_residual_rad`,
 /// `landmarks` (ids used), `surrogates`, `n_observations`, `n_rejected`,
-/// `gnss_difference_m`. Without a fix the arrays are `None`.
+/// `gnss_difference_m`. Without a fix the arrays are `None`. `backward=True` localizes a
+/// drive in reverse (frames given in decreasing time, as `vgps replay --direction combined`
+/// does in its second pass); use one localizer per direction.
 ///
 /// Example:
 /// >>> import vgps
@@ -677,7 +679,7 @@ impl PyLocalizer {
 
     /// Processes one frame (releases the GIL); see the Python docstring.
     #[pyo3(signature = (time_s, *, pixels = None, camera = None, bearings = None,
-        sigma_rad = None, gnss = None, classes = None))]
+        sigma_rad = None, gnss = None, classes = None, backward = false))]
     #[allow(clippy::too_many_arguments)]
     fn process<'py>(
         &mut self,
@@ -689,6 +691,7 @@ impl PyLocalizer {
         sigma_rad: Option<f64>,
         gnss: Option<(f64, f64, f64)>,
         classes: Option<Vec<Option<String>>>,
+        backward: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
         let mut observations = Vec::new();
         if let Some(p) = &pixels {
@@ -742,7 +745,13 @@ impl PyLocalizer {
             attitude: None,
         };
         let inner = &mut self.inner;
-        let fix = py.detach(|| inner.process(&frame));
+        let fix = py.detach(|| {
+            if backward {
+                inner.process_backward(&frame)
+            } else {
+                inner.process(&frame)
+            }
+        });
         let d = PyDict::new(py);
         d.set_item("time_s", fix.time_s)?;
         d.set_item("status", fix.status.as_str())?;

@@ -280,6 +280,31 @@ def test_localizer_frame_by_frame_on_a_simulated_drive(small_drive):
         loc.process(0.0, pixels=np.zeros((3, 3)))
 
 
+def test_localizer_backward_tracks_a_drive_in_reverse(small_drive):
+    drive = json.loads((small_drive / "drive.json").read_text())
+    cal = vgps.Calibration.load(small_drive / drive["calibration"])
+    loc = vgps.Localizer(cal, small_drive / drive["landmarks"], cold_start=False)
+    read = lambda name: np.genfromtxt(small_drive / name, delimiter=",", names=True, dtype=None, encoding="utf-8")
+    det, frames, truth = read(drive["detections"]), read(drive["frames"]), read(drive["truth"])
+    ok = 0
+    last = frames[:30][::-1]
+    for k, fr in enumerate(last):
+        rows = det[det["frame"] == fr["frame"]]
+        t = truth[truth["frame"] == fr["frame"]][0]
+        # Only the last frame has a prior; the backward pass tracks from it to the first.
+        g = (float(t["lat"]), float(t["lon"]), float(t["alt"])) if k == 0 else None
+        fix = loc.process(float(fr["time_s"]), pixels=np.column_stack([rows["u"], rows["v"]]),
+                          camera=rows["camera"].astype(int), gnss=g,
+                          classes=[str(c) or None for c in rows["class"]], backward=True)
+        assert fix["time_s"] == float(fr["time_s"])
+        if fix["status"] == "ok":
+            ok += 1
+            east = (fix["lat_lon_alt"][1] - t["lon"]) * 111320 * np.cos(np.radians(t["lat"]))
+            north = (fix["lat_lon_alt"][0] - t["lat"]) * 110540
+            assert np.hypot(east, north) < 2.0
+    assert ok >= 25, ok
+
+
 # ---- docstrings --------------------------------------------------------------------------
 
 

@@ -68,9 +68,11 @@ class Localizer:
         sigma_rad: Optional[float] = None,
         gnss: Optional[Tuple[float, float, float]] = None,
         classes: Optional[Sequence[Optional[str]]] = None,
+        backward: bool = False,
     ) -> Dict[str, Any]:
         """One frame in; ``status``, ``lat_lon_alt``, ``position_enu``, ``enu_from_rig_wxyz``,
-        ``heading_pitch_roll_deg``, ``covariance`` (6x6), ``landmarks``, … out."""
+        ``heading_pitch_roll_deg``, ``covariance`` (6x6), ``landmarks``, … out.
+        ``backward=True``: frames given in decreasing time (one localizer per direction)."""
     def reset(self) -> None: ...
     @property
     def origin(self) -> Tuple[float, float, float]: ...
