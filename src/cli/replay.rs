@@ -297,16 +297,9 @@ pub fn run_report(
         bar.finish_and_clear();
     }
     if combined {
-        let mut backward = Localizer::new(Arc::clone(&rig), Arc::clone(&map), options)
+        let backward = Localizer::new(Arc::clone(&rig), Arc::clone(&map), options)
             .map_err(|e| CliError::Internal(e.to_string()))?;
-        let fixes = backward_pass(&mut backward, &kept_frames, &records);
-        for (r, b) in records.iter().zip(&fixes) {
-            if let (None, Some(landmarks)) = (&r.visual, b.as_ref().and_then(|b| b.1.as_ref())) {
-                used.insert(r.frame, landmarks.clone());
-            }
-        }
-        let fixes: Vec<Option<BackwardFix>> = fixes.into_iter().map(|b| b.map(|b| b.0)).collect();
-        let c = combine_passes(&mut records, &fixes, LocalizerStatus::Ok.as_str());
+        let c = fill_from_backward_pass(backward, &kept_frames, &mut records, &mut used);
         if !settings.quiet {
             let _ = writeln!(
                 err,
@@ -448,6 +441,24 @@ impl FrameStep<'_, '_> {
         };
         (outcome, localized)
     }
+}
+
+/// Runs the backward pass over `frames` and fills the `records` the forward pass left
+/// without a fix ([`combine_passes`]), with their landmarks in `used`.
+fn fill_from_backward_pass(
+    mut localizer: Localizer,
+    frames: &[Option<Frame>],
+    records: &mut [FrameOutcome],
+    used: &mut std::collections::BTreeMap<u64, Vec<String>>,
+) -> vgps_replay::report::Combination {
+    let fixes = backward_pass(&mut localizer, frames, records);
+    for (r, b) in records.iter().zip(&fixes) {
+        if let (None, Some(landmarks)) = (&r.visual, b.as_ref().and_then(|b| b.1.as_ref())) {
+            used.insert(r.frame, landmarks.clone());
+        }
+    }
+    let fixes: Vec<Option<BackwardFix>> = fixes.into_iter().map(|b| b.map(|b| b.0)).collect();
+    combine_passes(records, &fixes, LocalizerStatus::Ok.as_str())
 }
 
 /// The backward pass of `--direction combined`: the frames localized in reverse order by
