@@ -299,7 +299,7 @@ pub fn run_report(
     if combined {
         let backward = Localizer::new(Arc::clone(&rig), Arc::clone(&map), options)
             .map_err(|e| CliError::Internal(e.to_string()))?;
-        let c = fill_from_backward_pass(backward, &kept_frames, &mut records, &mut used);
+        let c = fill_from_backward_pass(backward, kept_frames, &mut records, &mut used);
         if !settings.quiet {
             let _ = writeln!(
                 err,
@@ -447,23 +447,29 @@ impl FrameStep<'_, '_> {
 /// without a fix ([`combine_passes`]), with their landmarks in `used`.
 fn fill_from_backward_pass(
     mut localizer: Localizer,
-    frames: &[Option<Frame>],
+    frames: Vec<Option<Frame>>,
     records: &mut [FrameOutcome],
     used: &mut std::collections::BTreeMap<u64, Vec<String>>,
 ) -> vgps_replay::report::Combination {
     let fixes = backward_pass(&mut localizer, frames, records);
-    for (r, b) in records.iter().zip(&fixes) {
-        if let (None, Some(landmarks)) = (&r.visual, b.as_ref().and_then(|b| b.1.as_ref())) {
-            used.insert(r.frame, landmarks.clone());
-        }
+    let mut backward = Vec::with_capacity(fixes.len());
+    for (r, fix) in records.iter().zip(fixes) {
+        backward.push(fix.map(|fix| {
+            if let (None, Some(e)) = (&r.visual, &fix.estimate) {
+                used.insert(r.frame, e.landmarks.clone());
+            }
+            BackwardFix {
+                visual: visual_of(&fix),
+                message: fix.message,
+            }
+        }));
     }
-    let fixes: Vec<Option<BackwardFix>> = fixes.into_iter().map(|b| b.map(|b| b.0)).collect();
-    combine_passes(records, &fixes, LocalizerStatus::Ok.as_str())
+    combine_passes(records, &backward, LocalizerStatus::Ok.as_str())
 }
 
 /// The backward pass of `--direction combined`: the frames localized in reverse order by
 /// their own localizer ([`Localizer::process_backward`]), in the records' order (`None`
-/// for a frame without usable detections), each with the surveyed landmarks its fix used.
+/// for a frame without usable detections).
 ///
 /// A frame the forward pass fixed gives its fix as the backward pass's prior, in place of
 /// the satellite position: where the backward track is lost, it is found again at once
@@ -471,11 +477,11 @@ fn fill_from_backward_pass(
 /// tracking costs. Frames the forward pass did not fix keep their satellite prior, if any.
 fn backward_pass(
     localizer: &mut Localizer,
-    frames: &[Option<Frame>],
+    frames: Vec<Option<Frame>>,
     forward: &[FrameOutcome],
-) -> Vec<Option<(BackwardFix, Option<Vec<String>>)>> {
+) -> Vec<Option<LocalizerFix>> {
     let mut out = vec![None; frames.len()];
-    for (k, (frame, record)) in frames.iter().zip(forward).enumerate().rev() {
+    for (k, (frame, record)) in frames.into_iter().zip(forward).enumerate().rev() {
         let Some(frame) = frame else { continue };
         let seed = record
             .visual
@@ -484,18 +490,10 @@ fn backward_pass(
                 position: v.geodetic,
             })
             .or(frame.gnss);
-        let fix = localizer.process_backward(&Frame {
+        out[k] = Some(localizer.process_backward(&Frame {
             gnss: seed,
-            ..frame.clone()
-        });
-        let landmarks = fix.estimate.as_ref().map(|e| e.landmarks.clone());
-        out[k] = Some((
-            BackwardFix {
-                visual: visual_of(&fix),
-                message: fix.message,
-            },
-            landmarks,
-        ));
+            ..frame
+        }));
     }
     out
 }
