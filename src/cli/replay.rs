@@ -215,24 +215,7 @@ pub fn run_report(
     );
     let rig = Arc::new(drive.rig().clone());
     let from_images = settings.from_images || drive.manifest().detections.is_none();
-    let options = LocalizerOptions {
-        pixel_sigma_px: settings.pixel_sigma_px,
-        surrogates: settings.surrogates,
-        // The flag, else the calibration's declaration, else the default (5°).
-        level_tolerance_rad: settings
-            .up_tolerance_rad
-            .or(rig.level_within_rad())
-            .or(LocalizerOptions::default().level_tolerance_rad),
-        matcher: MatchOptions {
-            visibility_range_m: visibility_range_m(
-                settings.visibility_range_m,
-                from_images,
-                settings.detector,
-            ),
-            ..LocalizerOptions::default().matcher
-        },
-        ..LocalizerOptions::default()
-    };
+    let options = localizer_options(settings, &rig, from_images);
     let mut localizer = Localizer::new(Arc::clone(&rig), Arc::clone(&map), options)
         .map_err(|e| CliError::Internal(e.to_string()))?;
     // An unusable output directory fails now, not after the whole drive is localized.
@@ -244,16 +227,7 @@ pub fn run_report(
         ))
     })?;
     let frames = drive.frames();
-    let progress = (!settings.quiet && std::io::stderr().is_terminal()).then(|| {
-        let bar = indicatif::ProgressBar::new(frames.len() as u64);
-        bar.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{spinner} replay [{bar:40}] {pos}/{len} frames {per_sec} ETA {eta}",
-            )
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-        );
-        bar
-    });
+    let progress = progress_bar(settings, frames.len());
     let mut records = Vec::with_capacity(frames.len());
     // The localizer's input of every frame, for the backward pass.
     let combined = settings.direction == Direction::Combined;
@@ -324,6 +298,46 @@ pub fn run_report(
     super::robot_out::write_mcap(&settings.robot, &info, &records)?;
     write_summary(&report, settings, out_dir, out)?;
     Ok(report)
+}
+
+/// The localizer's options from the command line and the rig.
+fn localizer_options(
+    settings: &ReplaySettings,
+    rig: &vgps_camera::calibration::Rig,
+    from_images: bool,
+) -> LocalizerOptions {
+    LocalizerOptions {
+        pixel_sigma_px: settings.pixel_sigma_px,
+        surrogates: settings.surrogates,
+        // The flag, else the calibration's declaration, else the default (5°).
+        level_tolerance_rad: settings
+            .up_tolerance_rad
+            .or(rig.level_within_rad())
+            .or(LocalizerOptions::default().level_tolerance_rad),
+        matcher: MatchOptions {
+            visibility_range_m: visibility_range_m(
+                settings.visibility_range_m,
+                from_images,
+                settings.detector,
+            ),
+            ..LocalizerOptions::default().matcher
+        },
+        ..LocalizerOptions::default()
+    }
+}
+
+/// A progress bar over `frames` frames on a terminal, unless `--quiet`.
+fn progress_bar(settings: &ReplaySettings, frames: usize) -> Option<indicatif::ProgressBar> {
+    (!settings.quiet && std::io::stderr().is_terminal()).then(|| {
+        let bar = indicatif::ProgressBar::new(frames as u64);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{spinner} replay [{bar:40}] {pos}/{len} frames {per_sec} ETA {eta}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        bar
+    })
 }
 
 /// Writes the drive's warnings (manifest, skipped NMEA lines) to `err`.
