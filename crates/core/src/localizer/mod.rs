@@ -180,9 +180,9 @@ pub const SAME_CAMERA_CENTRE_M: f64 = 1e-3;
 pub const DEFAULT_LEVEL_TOLERANCE_RAD: f64 = 0.087_266_462_599_716_48;
 /// Pitch and roll (radians, 1°) a vehicle's rig may take from one frame to the next beyond
 /// what the motion model predicts: the prediction keeps a constant turn rate, a body on its
-/// suspension sways. Added in quadrature to the tilt gate's σ
-/// ([`tilt_innovation_sigmas`]). On the independent drives (`examples/independent_drives`,
-/// pitch and roll sway), right fixes on few surrogates lie up to 2.8° from the prediction
+/// suspension sways. Added in quadrature to the σ of the tilt gate of fixes on few
+/// surrogates. On the independent drives (`examples/independent_drives`, with pitch and
+/// roll sway), right fixes on few surrogates lie up to 2.8° from the prediction
 /// (p99 1.8°) with a prediction σ of 0.3°: without this term the gate refused them and the
 /// fast drive fell from 95 % to 85 % of frames fixed. The wrong fix the gate was made for
 /// (seed-4 reference drive, frame 1629) is 4.7° off, still more than 4 σ, and 10 σ off in
