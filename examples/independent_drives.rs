@@ -100,13 +100,8 @@ fn variants(unsurveyed: f64) -> Vec<(&'static str, DriveSpec)> {
         (
             "fast: 30 m lamps, 60 m corners, 15 m/s, 15 Hz, Ladybug, 40 m range",
             DriveSpec {
-                lamp_spacing_m: 30.0,
-                corner_spacing_m: 60.0,
-                speed_m_s: 15.0,
-                frame_rate_hz: 15.0,
-                detection_range_m: 40.0,
-                false_rate: 0.2,
-                ..issue
+                unsurveyed_length_m: unsurveyed,
+                ..DriveSpec::fast(0)
             },
         ),
     ]

@@ -68,16 +68,7 @@ fn a_swaying_fast_drive_keeps_its_surrogate_fixes() {
     // in tilt from the constant-rate prediction; without the sway term of the tilt gate
     // (`TILT_SWAY_SIGMA_RAD`) they were refused: 85.7 % of frames fixed and 100 of the
     // stretch's 153 frames on this seed, 95.1 % and 140 with it.
-    let spec = DriveSpec {
-        lamp_spacing_m: 30.0,
-        corner_spacing_m: 60.0,
-        speed_m_s: 15.0,
-        frame_rate_hz: 15.0,
-        detection_range_m: 40.0,
-        false_rate: 0.2,
-        ..DriveSpec::issue(1000)
-    };
-    let o = replay(&generate(&spec));
+    let o = replay(&generate(&DriveSpec::fast(1000)));
     let (stretch, fixed) = o.stretch_frames;
     println!(
         "fast: availability {:.2} %, stretch {fixed}/{stretch}, CEP95 {:.1} cm",
