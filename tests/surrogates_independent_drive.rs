@@ -8,7 +8,8 @@
 #[path = "support/independent_drive.rs"]
 mod independent_drive;
 
-use independent_drive::{DriveSpec, RigKind, generate, replay};
+use independent_drive::{DriveSpec, RigKind, generate, replay, replay_with};
+use vgps::localizer::{DEFAULT_SURROGATE_DRIFT_PER_M, LocalizerOptions};
 
 fn check(name: &str, spec: DriveSpec) {
     let drive = generate(&spec);
@@ -86,4 +87,71 @@ fn a_swaying_fast_drive_keeps_its_surrogate_fixes() {
         "max error {:?}",
         o.errors_m.last()
     );
+}
+
+#[test]
+fn the_reported_covariance_grows_with_the_distance_carried_on_surrogates() {
+    // The issue's drive replayed twice: with the default surrogate drift (0.1 % of the
+    // distance carried on surrogates, 1σ per axis) and without it. The drift enters the
+    // reported covariance only: the fixes are the same, bit for bit; a fix on surrogates
+    // alone (all its information from surrogates) reports `(0.001·d)²` more variance per
+    // axis, `d` the path since the last fix on surveyed landmarks.
+    let drive = generate(&DriveSpec::issue(7));
+    let run = |rate: f64| {
+        let options = LocalizerOptions {
+            surrogate_drift_per_m: rate,
+            ..LocalizerOptions::default()
+        };
+        let mut fixes = Vec::new();
+        replay_with(&drive, options, |_, fix| {
+            fixes.push(fix.estimate.as_ref().map(|e| {
+                (
+                    e.world_from_rig.translation.vector,
+                    e.covariance[(0, 0)],
+                    e.landmarks.len(),
+                    e.surrogates.len(),
+                )
+            }))
+        });
+        fixes
+    };
+    let with = run(DEFAULT_SURROGATE_DRIFT_PER_M);
+    let without = run(0.0);
+    assert_eq!(with.len(), without.len());
+    let (mut on_surrogates, mut largest_added_sigma) = (0, 0.0_f64);
+    let mut carried_m = 0.0;
+    let mut last: Option<nalgebra::Vector3<f64>> = None;
+    for (a, b) in with.iter().zip(&without) {
+        let (Some(a), Some(b)) = (a, b) else {
+            assert!(a.is_none() && b.is_none(), "same fixes either way");
+            continue;
+        };
+        assert_eq!(a.0, b.0, "the drift must not move a fix");
+        let added = a.1 - b.1;
+        assert!(added >= -1e-15, "the drift only adds variance: {added}");
+        // The localizer's rule: a fix on ≥ 3 surveyed landmarks that give most of its
+        // information (nothing added) ends the distance carried; every other fix extends it.
+        if a.2 >= 3 && added == 0.0 {
+            carried_m = 0.0;
+        } else if let Some(l) = last {
+            carried_m += (a.0 - l).norm();
+        }
+        if a.2 == 0 && a.3 > 0 {
+            // All of this fix's information is from surrogates: f = 1.
+            let expected = (DEFAULT_SURROGATE_DRIFT_PER_M * carried_m).powi(2);
+            assert!(
+                (added - expected).abs() <= 1e-9 + 0.05 * expected,
+                "added {added} m², expected {expected} m² after {carried_m:.1} m"
+            );
+            on_surrogates += 1;
+            largest_added_sigma = largest_added_sigma.max(added.sqrt());
+        }
+        last = Some(a.0);
+    }
+    println!(
+        "{on_surrogates} fixes on surrogates alone, largest added σ {largest_added_sigma:.3} m"
+    );
+    assert!(on_surrogates >= 50, "{on_surrogates}");
+    // The stretch is ≥ 120 m without surveyed landmarks: ≥ 0.1 % of 100 m.
+    assert!(largest_added_sigma >= 0.1, "{largest_added_sigma}");
 }

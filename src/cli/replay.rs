@@ -102,6 +102,12 @@ pub struct ReplayArgs {
     /// (docs/dev/journal.md, 2026-11-27).
     #[arg(long, value_name = "M", value_parser = super::args::parse_positive)]
     pub visibility_range_m: Option<f64>,
+    /// Drift of a pose carried on surrogate landmarks, in percent of the distance travelled
+    /// since the fix last rested on surveyed landmarks (1σ per axis): added to the reported
+    /// covariance, nothing else. The default (0.1 %) covers the detectors measured in
+    /// docs/localizer.md ("Honest covariance"); measure your own detector's with truth.
+    #[arg(long, value_name = "PERCENT", default_value_t = 100.0 * vgps_core::localizer::DEFAULT_SURROGATE_DRIFT_PER_M, value_parser = super::args::parse_non_negative)]
+    pub surrogate_drift_percent: f64,
     /// Detect landmarks in the images even when the drive has `detections.csv`.
     #[arg(long)]
     pub from_images: bool,
@@ -309,6 +315,7 @@ fn localizer_options(
     LocalizerOptions {
         pixel_sigma_px: settings.pixel_sigma_px,
         surrogates: settings.surrogates,
+        surrogate_drift_per_m: settings.surrogate_drift_per_m,
         // The flag, else the calibration's declaration, else the default (5°).
         level_tolerance_rad: settings
             .up_tolerance_rad

@@ -117,6 +117,9 @@ pub struct ReplaySettings {
     pub up_tolerance_rad: Option<f64>,
     /// `--visibility-range-m`: the matcher's visibility range (default: by detector).
     pub visibility_range_m: Option<f64>,
+    /// `--surrogate-drift-percent` as a fraction: the drift of a pose carried on
+    /// surrogates per metre (1σ), added to the reported covariance.
+    pub surrogate_drift_per_m: f64,
     /// Detect lamps in the images even when the drive has a detections file.
     pub from_images: bool,
     /// The image size of cameras whose calibration has none (`--image-size WxH`).
@@ -322,6 +325,7 @@ impl TryFrom<ReplayArgs> for ReplaySettings {
             imu: !a.no_imu,
             up_tolerance_rad: a.up_tolerance_deg.map(f64::to_radians),
             visibility_range_m: a.visibility_range_m,
+            surrogate_drift_per_m: a.surrogate_drift_percent / 100.0,
             from_images: a.from_images,
             image_size: a.image_size,
             detector: a.detector.into(),
