@@ -203,13 +203,10 @@ fn validate(params: &LutParams) -> Result<(usize, usize), String> {
     Ok((cols, rows))
 }
 
+/// The first three components of a stored node (`[f32; 3]`, or `[f32; 4]` padded) in `f64`.
 #[inline]
-fn to_f64(b: &[f32; 3]) -> Vector3<f64> {
-    Vector3::new(f64::from(b[0]), f64::from(b[1]), f64::from(b[2]))
-}
-
-#[inline]
-fn padded_to_f64(b: &[f32; 4]) -> Vector3<f64> {
+fn to_f64<const N: usize>(b: &[f32; N]) -> Vector3<f64> {
+    const { assert!(N >= 3) };
     Vector3::new(f64::from(b[0]), f64::from(b[1]), f64::from(b[2]))
 }
 
@@ -426,8 +423,8 @@ impl Lut {
         // one bounds check for both entries.
         let pair = &self.pairs[j * self.cols + i..][..2];
         let ([n00, n01], [n10, n11]) = (&pair[0].0, &pair[1].0);
-        let (b00, b10) = (padded_to_f64(n00), padded_to_f64(n10));
-        let (b01, b11) = (padded_to_f64(n01), padded_to_f64(n11));
+        let (b00, b10) = (to_f64(n00), to_f64(n10));
+        let (b01, b11) = (to_f64(n01), to_f64(n11));
         let top = b00 + (b10 - b00) * t;
         let bottom = b01 + (b11 - b01) * t;
         top + (bottom - top) * r

@@ -198,8 +198,8 @@ pub const PRIOR_VERTICAL_HALF_RANGE_M: f64 = 3.0;
 /// (docs/localizer.md, "Honest covariance"): error over distance carried p95 0.06–0.08 % on
 /// the simulated and night street detections, 0.16–0.30 % on the day reference drive's
 /// building corners and the short drive's lamps; 0.1 % is that p95 over 2.45 (the 95 %
-/// ellipse's radius in σ) and takes the day drive's surrogate-only fixes from 48 % to
-/// 100 % inside their 95 % ellipse.
+/// ellipse's radius in σ) and takes the day drive's backward fixes on surrogates alone
+/// from 73 % to 99 % inside their 95 % ellipse.
 pub const DEFAULT_SURROGATE_DRIFT_PER_M: f64 = 0.001;
 
 /// Options of a [`Localizer`]; `Default` gives the documented constants.
