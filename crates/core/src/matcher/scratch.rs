@@ -1,21 +1,113 @@
-//! Small utilities of the search: the key of the per-triple P3P cache (hashed by
-//! `rustc_hash::FxBuildHasher`: the standard SipHash cost as much as a third of a P3P solve), the
+//! Small utilities of the search: the map of the per-triple P3P cache ([`SolvedTriples`]), the
 //! thread-local pool of cell buffers, bit sets and the crate's one shuffle.
 
 use super::pairs::{CellCache, CellData, cached_bytes};
 use nalgebra::Vector3;
 use std::cell::RefCell;
-use std::hash::Hasher;
 
-/// A landmark index triple, the key of the per-detection-triple P3P cache.
-#[derive(Clone, Copy, PartialEq, Eq)]
-pub(super) struct TripleKey(pub(super) [usize; 3]);
+/// The map of a detection triple's solved landmark triples: each landmark triple (database
+/// indices) to its index in the list of triples to solve. Open addressing with linear
+/// probing in a table at most half full, keyed by one multiply per key (the standard
+/// SipHash cost as much as a third of a P3P solve, and `std`'s map with `FxHash` about 60
+/// instructions per lookup); the entries taken are listed, so that clearing it between
+/// detection triples touches only them. Collisions cost a comparison, never a wrong answer.
+pub(super) struct SolvedTriples {
+    /// `(key, index)`; [`FREE_ENTRY`] as the index: a free entry. A power of two long.
+    entries: Vec<([usize; 3], usize)>,
+    /// The positions of the entries taken, in insertion order.
+    taken: Vec<usize>,
+}
 
-impl std::hash::Hash for TripleKey {
-    fn hash<H: Hasher>(&self, state: &mut H) {
-        // One word per key: collisions cost a comparison, never a wrong answer.
-        let [i, j, k] = self.0.map(|x| x as u64);
-        state.write_u64(i ^ j.rotate_left(21) ^ k.rotate_left(42));
+/// The index of a free entry of [`SolvedTriples`].
+const FREE_ENTRY: usize = usize::MAX;
+
+/// The position of a key in a table of `mask + 1` entries, before probing: the product of
+/// the key's one word with `rustc_hash`'s constant, its high bits rotated down (the low bits
+/// of a product depend only on the low bits of the factor, which hold only the first
+/// landmark index).
+fn triple_hash(key: &[usize; 3], mask: usize) -> usize {
+    let [i, j, k] = key.map(|x| x as u64);
+    let word = i ^ j.rotate_left(21) ^ k.rotate_left(42);
+    (word.wrapping_mul(0xf135_7aea_2e62_a9c5).rotate_left(26) as usize) & mask
+}
+
+impl SolvedTriples {
+    /// An empty map with room for `capacity` keys before it grows.
+    pub(super) fn with_capacity(capacity: usize) -> Self {
+        let size = capacity.saturating_mul(2).next_power_of_two().max(16);
+        Self {
+            entries: vec![([0; 3], FREE_ENTRY); size],
+            taken: Vec::with_capacity(capacity),
+        }
+    }
+
+    /// Removes every key (the capacity is kept).
+    pub(super) fn clear(&mut self) {
+        for &p in &self.taken {
+            self.entries[p].1 = FREE_ENTRY;
+        }
+        self.taken.clear();
+    }
+
+    /// The keys held.
+    #[cfg(test)]
+    pub(super) fn len(&self) -> usize {
+        self.taken.len()
+    }
+
+    /// The bytes the map holds (its capacities).
+    pub(super) fn held_bytes(&self) -> usize {
+        self.entries.capacity() * std::mem::size_of::<([usize; 3], usize)>()
+            + self.taken.capacity() * std::mem::size_of::<usize>()
+    }
+
+    /// `Ok(index)` of `key`, or `Err(position)`: where [`SolvedTriples::insert`] puts it.
+    pub(super) fn find(&self, key: &[usize; 3]) -> Result<usize, usize> {
+        let mask = self.entries.len() - 1;
+        let mut p = triple_hash(key, mask);
+        // The table is at most half full: a free entry ends every probe.
+        loop {
+            let (k, index) = &self.entries[p];
+            if *index == FREE_ENTRY {
+                return Err(p);
+            }
+            if k == key {
+                return Ok(*index);
+            }
+            p = (p + 1) & mask;
+        }
+    }
+
+    /// Inserts a `key` that [`SolvedTriples::find`] did not find (at the `position` it
+    /// gave, unless the table grows first) with its `index`.
+    pub(super) fn insert(&mut self, position: usize, key: [usize; 3], index: usize) {
+        if (self.taken.len() + 1) * 2 > self.entries.len() {
+            self.grow();
+            if let Err(p) = self.find(&key) {
+                self.put(p, key, index);
+            }
+        } else {
+            self.put(position, key, index);
+        }
+    }
+
+    fn put(&mut self, position: usize, key: [usize; 3], index: usize) {
+        self.entries[position] = (key, index);
+        self.taken.push(position);
+    }
+
+    /// Doubles the table, the keys re-inserted in insertion order.
+    fn grow(&mut self) {
+        let old = std::mem::take(&mut self.entries);
+        let taken = std::mem::take(&mut self.taken);
+        self.entries = vec![([0; 3], FREE_ENTRY); old.len() * 2];
+        self.taken = Vec::with_capacity(taken.capacity() * 2);
+        for p in taken {
+            let (key, index) = old[p];
+            if let Err(q) = self.find(&key) {
+                self.put(q, key, index);
+            }
+        }
     }
 }
 

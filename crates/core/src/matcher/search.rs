@@ -8,7 +8,7 @@ use super::cells::cells;
 use super::conclusion::conclude;
 use super::pairs::{CELL_CACHE_BUDGET_BYTES, PairContext, cell_data};
 use super::scoring::ConclusionCache;
-use super::scratch::{Cells, TripleKey, shuffle};
+use super::scratch::{Cells, SolvedTriples, shuffle};
 use super::{
     CORE_GROWTH, DUPLICATE_ANGLE_RAD, Detection, HYPOTHESIS_THRESHOLD_FACTOR, LandmarkDb,
     MAX_CONFIRMATION_TRIPLES, MIN_TRIPLE_ANGLE_RAD, MatchError, MatchOptions, MatchResult,
@@ -16,8 +16,6 @@ use super::{
 };
 use nalgebra::Vector3;
 use rand::SeedableRng;
-use std::collections::HashMap;
-use std::collections::hash_map::Entry;
 use vgps_geometry::geometry::{Pose, PoseSolutions, angle_between, try_unit};
 use vgps_geometry::solvers::p3p::{P3pBearings, p3p_prepared_into};
 
@@ -445,7 +443,7 @@ struct TripleWork {
     /// `solved_ranges`). A detection triple solves about 700 distinct landmark triples over
     /// a 30 m prior: sized once, so that it does not grow by rehashing during the first
     /// triple.
-    solved: HashMap<TripleKey, usize, rustc_hash::FxBuildHasher>,
+    solved: SolvedTriples,
     /// The distinct landmark triples to solve (their points).
     to_solve: Vec<[Vector3<f64>; 3]>,
     /// The landmark triples of the cells in visiting order (cell, candidates, index into
@@ -458,15 +456,109 @@ struct TripleWork {
     solves: usize,
 }
 
+/// At most this many bytes of a frame's [`TripleWork`] buffers are kept per thread for the
+/// next frame (8 MiB): a cold start's buffers can grow far larger and are freed.
+pub(super) const MAX_POOLED_WORK_BYTES: usize = 1 << 23;
+
+thread_local! {
+    /// The [`TripleWork`] of this thread's last frame, whose buffers the next frame reuses
+    /// instead of growing fresh ones (about 35 reallocations and their copies per prior
+    /// frame, and the solved-triples map's allocation).
+    static TRIPLE_WORK_POOL: std::cell::RefCell<Option<TripleWork>> =
+        const { std::cell::RefCell::new(None) };
+}
+
+/// A frame's [`TripleWork`], from the thread's pool when it has one; its buffers go back to
+/// the pool when the frame is done (if they are not too large).
+struct PooledWork(TripleWork);
+
+impl PooledWork {
+    fn take() -> Self {
+        let pooled = TRIPLE_WORK_POOL
+            .try_with(|pool| pool.try_borrow_mut().ok().and_then(|mut p| p.take()))
+            .ok()
+            .flatten();
+        Self(match pooled {
+            Some(mut work) => {
+                work.reset();
+                work
+            }
+            None => TripleWork::new(),
+        })
+    }
+}
+
+impl Drop for PooledWork {
+    fn drop(&mut self) {
+        if self.0.held_bytes() > MAX_POOLED_WORK_BYTES {
+            return;
+        }
+        let work = std::mem::replace(&mut self.0, TripleWork::empty());
+        let _ = TRIPLE_WORK_POOL.try_with(|pool| {
+            if let Ok(mut pool) = pool.try_borrow_mut() {
+                *pool = Some(work);
+            }
+        });
+    }
+}
+
+impl std::ops::Deref for PooledWork {
+    type Target = TripleWork;
+    fn deref(&self) -> &TripleWork {
+        &self.0
+    }
+}
+
+impl std::ops::DerefMut for PooledWork {
+    fn deref_mut(&mut self) -> &mut TripleWork {
+        &mut self.0
+    }
+}
+
 impl TripleWork {
+    /// Buffers without capacity (what a [`PooledWork`] leaves behind when it is dropped).
+    fn empty() -> Self {
+        Self {
+            survivors: Vec::new(),
+            scratch_tables: Vec::new(),
+            solved: SolvedTriples::with_capacity(0),
+            to_solve: Vec::new(),
+            work: Vec::new(),
+            solved_poses: Vec::new(),
+            solved_ranges: Vec::new(),
+            solves: 0,
+        }
+    }
+
+    /// Empties the buffers (their capacity is kept) for a new frame.
+    fn reset(&mut self) {
+        self.survivors.clear();
+        self.scratch_tables.clear();
+        self.solved.clear();
+        self.to_solve.clear();
+        self.work.clear();
+        self.solved_poses.clear();
+        self.solved_ranges.clear();
+        self.solves = 0;
+    }
+
+    /// The bytes the buffers hold (their capacities; the map's entries counted once).
+    fn held_bytes(&self) -> usize {
+        use std::mem::size_of;
+        self.survivors.capacity() * size_of::<[usize; 3]>()
+            + self.scratch_tables.capacity() * size_of::<u64>()
+            + self.solved.held_bytes()
+            + self.to_solve.capacity() * size_of::<[Vector3<f64>; 3]>()
+            + self.work.capacity() * size_of::<(usize, [usize; 3], usize)>()
+            + self.solved_poses.capacity() * size_of::<Pose>()
+            + self.solved_ranges.capacity() * size_of::<(usize, usize)>()
+    }
+
     fn new() -> Self {
         Self {
             survivors: Vec::new(),
             scratch_tables: Vec::new(),
-            solved: HashMap::with_capacity_and_hasher(
-                SOLVED_TRIPLES_CAPACITY,
-                rustc_hash::FxBuildHasher,
-            ),
+            solved: SolvedTriples::with_capacity(SOLVED_TRIPLES_CAPACITY),
             to_solve: Vec::new(),
             work: Vec::new(),
             solved_poses: Vec::new(),
@@ -628,7 +720,7 @@ impl Search<'_> {
         frame: &SearchPlan,
     ) -> MatchResult {
         let options = self.options;
-        let mut work = TripleWork::new();
+        let mut work = PooledWork::take();
         // The confirmation triples run so far (sorted detection indices).
         let mut confirmations_tried: Vec<[usize; 3]> = Vec::new();
         let mut previous = 0;
@@ -807,9 +899,9 @@ impl Search<'_> {
                     }
                 }
                 let key = [cands[i].index, cands[j].index, cands[k].index];
-                let slot = match work.solved.entry(TripleKey(key)) {
-                    Entry::Occupied(entry) => *entry.get(),
-                    Entry::Vacant(entry) => {
+                let slot = match work.solved.find(&key) {
+                    Ok(slot) => slot,
+                    Err(position) => {
                         // Not solved when no pose of it could be upright enough within
                         // this cell's reach (the only poses this cell uses); nor
                         // remembered, since a neighbouring cell may need it. The
@@ -830,7 +922,9 @@ impl Search<'_> {
                             continue;
                         }
                         work.to_solve.push(points);
-                        *entry.insert(work.to_solve.len() - 1)
+                        let slot = work.to_solve.len() - 1;
+                        work.solved.insert(position, key, slot);
+                        slot
                     }
                 };
                 work.work.push((cell_index, [i, j, k], slot));
