@@ -214,21 +214,30 @@ impl CellData {
         let (u, words) = (*used, *words);
         let allowed_b = &allowed[b * words..(b + 1) * words];
         for_each_bit(&allowed[a * words..(a + 1) * words], |i| {
+            let row_i = rows[i] as usize * u;
             for (w, &word_b) in allowed_b.iter().enumerate() {
                 let mut missing = word_b & !pairs_done[i * words + w];
                 // The diagonal is never tested (`i ≠ j`).
                 if w == i / 64 {
                     missing &= !(1u64 << (i % 64));
                 }
+                // Row `i`'s bits at once; row `j`'s (the mirror) one by one below.
+                pairs_done[i * words + w] |= missing;
                 while missing != 0 {
                     let j = w * 64 + missing.trailing_zeros() as usize;
                     missing &= missing - 1;
-                    let (lo, hi) = (i.min(j), i.max(j));
-                    let values = context.values(db, cands, sides, slots_shared, lo, hi);
-                    let (r_lo, r_hi) = (rows[lo] as usize, rows[hi] as usize);
-                    pairs[r_lo * u + r_hi] = values;
-                    pairs[r_hi * u + r_lo] = values.mirrored();
-                    bit_set(&mut pairs_done[i * words..(i + 1) * words], j);
+                    let row_j = rows[j] as usize * u;
+                    let (i_r, j_r) = (rows[i] as usize, rows[j] as usize);
+                    // The pair in database order, mirrored for the other entry.
+                    if i < j {
+                        let values = context.values(db, cands, sides, slots_shared, i, j);
+                        pairs[row_i + j_r] = values;
+                        pairs[row_j + i_r] = values.mirrored();
+                    } else {
+                        let values = context.values(db, cands, sides, slots_shared, j, i);
+                        pairs[row_j + i_r] = values;
+                        pairs[row_i + j_r] = values.mirrored();
+                    }
                     bit_set(&mut pairs_done[j * words..(j + 1) * words], i);
                 }
             }
@@ -870,8 +879,17 @@ impl Search<'_> {
         }
         let (m, words) = (cell.cands.len(), cell.words);
         if cell.cache == CellCache::Stored {
-            for (p, q) in keys {
+            // An empty table leaves no landmark triple: the tables already built are looked
+            // at first, and the others are built one by one until one is empty (a later
+            // detection triple builds the rest when it needs them).
+            let mut order = keys;
+            order.sort_by_key(|&(p, q)| cell.slots[p * n + q] == NO_TABLE);
+            for (p, q) in order {
                 self.ensure_table(cell, context, p, q);
+                if cell.table(p * n + q).iter().all(|&w| w == 0) {
+                    survivors.clear();
+                    return;
+                }
             }
             let tables = keys.map(|(p, q)| cell.table(p * n + q));
             table_survivors(m, words, tables, survivors);
@@ -972,29 +990,34 @@ impl Search<'_> {
         // Each test is evaluated whole and its outcome OR-ed in as a bit: about one pair in
         // eight passes, at random, so a branch per test would be mispredicted often.
         let (u, rows) = (cell.used, &cell.rows);
-        // A row's word is gathered in a register and stored once.
+        // Without a vertical the side of a pair is not tested: the bounds always pass (the
+        // pairs' side ranges are finite, `(−1, 1)` then).
+        let (det_hi, det_lo) = match pair_det {
+            Some((d, margin)) => (d + margin, d - margin),
+            None => (f64::INFINITY, f64::NEG_INFINITY),
+        };
+        // A row's word is gathered in a register and stored once; the diagonal (`i = j`,
+        // never passing) is left out of the bits visited.
         for_each_bit(allowed_a, |i| {
             let row = &mut table[i * words..(i + 1) * words];
             let r = rows[i] as usize;
             let pairs = &cell.pairs[r * u..(r + 1) * u];
             for ((w, &bits), out) in allowed_b.iter().enumerate().zip(row.iter_mut()) {
                 let mut word = 0u64;
-                let mut rest = bits;
+                let mut rest = if w == i / 64 {
+                    bits & !(1u64 << (i % 64))
+                } else {
+                    bits
+                };
                 while rest != 0 {
                     let bit = rest.trailing_zeros();
                     rest &= rest - 1;
                     let j = w * 64 + bit as usize;
                     let p = &pairs[rows[j] as usize];
-                    let pass = match pair_det {
-                        Some((d, margin)) => {
-                            let (lo, hi) = p.det;
-                            (i != j)
-                                & ((theta - p.angle).abs() <= tol + p.bound)
-                                & (d + margin >= lo)
-                                & (d - margin <= hi)
-                        }
-                        None => (i != j) & ((theta - p.angle).abs() <= tol + p.bound),
-                    };
+                    let (lo, hi) = p.det;
+                    let pass = ((theta - p.angle).abs() <= tol + p.bound)
+                        & (det_hi >= lo)
+                        & (det_lo <= hi);
                     word |= u64::from(pass) << bit;
                 }
                 *out = word;

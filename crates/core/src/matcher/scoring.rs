@@ -98,7 +98,7 @@ impl Search<'_> {
     ) -> bool {
         let threshold = HYPOTHESIS_THRESHOLD_FACTOR * self.noise;
         let angle = threshold.min(std::f64::consts::PI);
-        let cos_threshold = angle.cos();
+        let cos_threshold = self.cos_hypothesis_threshold;
         let window = angle + VERIFY_WINDOW_SLACK;
         let survey_factor = HYPOTHESIS_THRESHOLD_FACTOR * self.options.inlier_threshold_sigmas;
         let t = pose.translation.vector;

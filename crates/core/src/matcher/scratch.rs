@@ -80,6 +80,7 @@ impl SolvedTriples {
 
     /// Inserts a `key` that [`SolvedTriples::find`] did not find (at the `position` it
     /// gave, unless the table grows first) with its `index`.
+    #[inline]
     pub(super) fn insert(&mut self, position: usize, key: [usize; 3], index: usize) {
         if (self.taken.len() + 1) * 2 > self.entries.len() {
             self.grow();
@@ -97,6 +98,7 @@ impl SolvedTriples {
     }
 
     /// Doubles the table, the keys re-inserted in insertion order.
+    #[cold]
     fn grow(&mut self) {
         let old = std::mem::take(&mut self.entries);
         let taken = std::mem::take(&mut self.taken);

@@ -135,6 +135,9 @@ pub(super) struct Search<'a> {
     pub(super) options: &'a MatchOptions,
     /// Per-bearing noise bound k·σ (radians).
     pub(super) noise: f64,
+    /// `cos(min(HYPOTHESIS_THRESHOLD_FACTOR · noise, π))`, the verification's test
+    /// ([`Search::verify`]), once per frame.
+    pub(super) cos_hypothesis_threshold: f64,
     pub(super) kept: Vec<KeptHypothesis>,
     pub(super) hypotheses: usize,
     /// Distinct P3P poses generated inside the area's reach, over every detection triple:
@@ -686,6 +689,10 @@ impl Search<'_> {
             directions,
             options,
             noise: options.inlier_threshold_sigmas * options.sigma_rad,
+            cos_hypothesis_threshold: (HYPOTHESIS_THRESHOLD_FACTOR
+                * (options.inlier_threshold_sigmas * options.sigma_rad))
+                .min(std::f64::consts::PI)
+                .cos(),
             kept: Vec::new(),
             hypotheses: 0,
             pose_tests: 0,
