@@ -551,6 +551,58 @@ impl Search<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::RngExt;
+
+    /// The `z` window of [`Search::verify`] keeps every extension the exact test accepts:
+    /// for a world direction `w = R b` and a landmark offset `v` at any angle from it near
+    /// the threshold `a` (up to π, the survey-widened case), `v · w ≥ cos(a) |v|` (as
+    /// computed) implies `|v_z / |v| − w_z| ≤ a + VERIFY_WINDOW_SLACK`. Also checks that the
+    /// window is nearly reached (so that a narrower one, e.g. `0.9 a`, fails).
+    #[test]
+    fn the_verification_window_keeps_every_extension_the_exact_test_accepts() {
+        let mut r = vgps_geometry::synthetic::rng(23);
+        let (mut accepted, mut worst_ratio) = (0, 0f64);
+        for trial in 0..200_000 {
+            let a = if trial % 4 == 0 {
+                r.random_range(1e-4..std::f64::consts::PI)
+            } else {
+                HYPOTHESIS_THRESHOLD_FACTOR * 5.0 * r.random_range(0.01f64..0.2).to_radians()
+            };
+            let pose = vgps_geometry::synthetic::random_pose(&mut r, 100.0);
+            let b = vgps_geometry::synthetic::random_unit_vector(&mut r);
+            let w = pose.rotation * b;
+            // A direction at angle `alpha` from `w`, mostly near the threshold.
+            let alpha = a
+                * r.random_range(0.9..1.1)
+                * if trial % 3 == 0 {
+                    r.random_range(0.0..1.0)
+                } else {
+                    1.0
+                };
+            let p = vgps_geometry::synthetic::random_unit_vector(&mut r);
+            let Some(perp) = vgps_geometry::geometry::try_unit(&(p - w * w.dot(&p))) else {
+                continue;
+            };
+            let u = w * alpha.cos() + perp * alpha.sin();
+            let v = u * r.random_range(0.5..200.0);
+            let range = v.norm();
+            let angle = a.min(std::f64::consts::PI);
+            if v.dot(&w) >= angle.cos() * range {
+                accepted += 1;
+                let gap = (v.z / range - w.z).abs();
+                assert!(
+                    gap <= angle + VERIFY_WINDOW_SLACK,
+                    "trial {trial}: z gap {gap} beyond the window {angle}"
+                );
+                worst_ratio = worst_ratio.max(gap / angle);
+            }
+        }
+        assert!(accepted > 50_000, "{accepted} accepted");
+        assert!(
+            worst_ratio > 0.95,
+            "the window is never nearly reached: {worst_ratio}"
+        );
+    }
 
     #[test]
     fn a_pose_is_the_same_as_itself_and_its_refined_copies() {

@@ -221,3 +221,47 @@ pub(crate) fn shuffle<R: rand::Rng + ?Sized, T>(rng: &mut R, items: &mut [T]) {
         items.swap(i, j);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::RngExt;
+    use std::collections::HashMap;
+
+    /// [`SolvedTriples`] gives what a `HashMap` gives, through its growth from the smallest
+    /// table and after clearing, on keys with many repeats and shared first indices.
+    #[test]
+    fn solved_triples_find_what_a_hash_map_finds() {
+        let mut r = vgps_geometry::synthetic::rng(5);
+        let mut map = SolvedTriples::with_capacity(0);
+        for round in 0..4 {
+            let mut reference: HashMap<[usize; 3], usize> = HashMap::new();
+            let span = [40, 400, 4_000, 40][round];
+            for _ in 0..20_000 {
+                let key = [
+                    r.random_range(0..span),
+                    r.random_range(0..span),
+                    r.random_range(0..span) + (usize::MAX >> 1) * (round % 2),
+                ];
+                match map.find(&key) {
+                    Ok(index) => assert_eq!(reference.get(&key), Some(&index)),
+                    Err(position) => {
+                        assert_eq!(reference.get(&key), None);
+                        let index = reference.len();
+                        reference.insert(key, index);
+                        map.insert(position, key, index);
+                    }
+                }
+                assert_eq!(map.len(), reference.len());
+            }
+            for (key, index) in &reference {
+                assert_eq!(map.find(key), Ok(*index));
+            }
+            map.clear();
+            assert_eq!(map.len(), 0);
+            for key in reference.keys() {
+                assert!(map.find(key).is_err());
+            }
+        }
+    }
+}
