@@ -35,10 +35,6 @@ pub(super) const RANGE_SET_SLACK: f64 = 0.25;
 pub(super) const RANGE_SET_ROUNDING: f64 = 1e-9;
 /// At most this many gathered landmark sets per frame (the oldest is dropped).
 pub(super) const MAX_RANGE_SETS: usize = 4;
-/// Added to the `z` window of [`Search::verify`], radians: far above the rounding of the
-/// exact test (about 1e-15 relative), so that no extension the exact test accepts is left
-/// out of the window.
-pub(super) const VERIFY_WINDOW_SLACK: f64 = 1e-6;
 
 /// What the conclusion keeps between its calls in a frame (early-stop checks conclude
 /// more than once) and scratch space of the scoring.
@@ -82,13 +78,6 @@ impl Search<'_> {
     /// Whether at least `min_extensions` of the detections `extensions` each lie, under
     /// `pose`, within the hypothesis threshold of a candidate of the cell other than the
     /// hypothesis's own three (`exclude`, cell-local indices).
-    ///
-    /// Most poses fail (about nine in ten), visiting every candidate against every
-    /// extension. The extensions' world directions are sorted by their `z`, and a candidate
-    /// is tested (by the exact test below) only against those whose `z` is within the
-    /// threshold angle `a` (plus [`VERIFY_WINDOW_SLACK`]) of its own unit direction's: two
-    /// unit vectors at most `a` apart differ by at most `2 sin(a/2) ≤ a` in every component.
-    /// The extensions left out fail the exact test, so the outcome is the same.
     pub(super) fn verify(
         &mut self,
         pose: &Pose,
@@ -97,9 +86,8 @@ impl Search<'_> {
         cell: &CellData,
     ) -> bool {
         let threshold = HYPOTHESIS_THRESHOLD_FACTOR * self.noise;
-        let angle = threshold.min(std::f64::consts::PI);
+        // `cos(min(threshold, π))`, once per frame.
         let cos_threshold = self.cos_hypothesis_threshold;
-        let window = angle + VERIFY_WINDOW_SLACK;
         let survey_factor = HYPOTHESIS_THRESHOLD_FACTOR * self.options.inlier_threshold_sigmas;
         let t = pose.translation.vector;
         // The extensions' directions in the world frame, and whether each has been seen.
@@ -112,8 +100,6 @@ impl Search<'_> {
                 .iter()
                 .map(|&d| (pose.rotation * self.directions[d], false)),
         );
-        self.scratch_extensions
-            .sort_unstable_by(|x, y| x.0.z.total_cmp(&y.0.z));
         let mut verified = 0;
         for (m, cand) in cell.cands.iter().enumerate() {
             if exclude.contains(&m) {
@@ -124,24 +110,15 @@ impl Search<'_> {
             let r = v.norm();
             if r > 0.0 {
                 // Survey error widens the threshold for near landmarks.
-                let (cos_t, window) = if l.sigma_m > 0.0 {
-                    let angle =
-                        (threshold + survey_factor * l.sigma_m / r).min(std::f64::consts::PI);
-                    (angle.cos(), angle + VERIFY_WINDOW_SLACK)
+                let cos_t = if l.sigma_m > 0.0 {
+                    (threshold + survey_factor * l.sigma_m / r)
+                        .min(std::f64::consts::PI)
+                        .cos()
                 } else {
-                    (cos_threshold, window)
+                    cos_threshold
                 };
                 let limit = cos_t * r;
-                let z = v.z / r;
-                let (lo, hi) = (z - window, z + window);
                 for (w, seen) in &mut self.scratch_extensions {
-                    // Sorted by `z` (a NaN, at either end, gets the exact test).
-                    if w.z < lo {
-                        continue;
-                    }
-                    if w.z > hi {
-                        break;
-                    }
                     if !*seen && v.dot(w) >= limit {
                         *seen = true;
                         verified += 1;
@@ -551,58 +528,6 @@ impl Search<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::RngExt;
-
-    /// The `z` window of [`Search::verify`] keeps every extension the exact test accepts:
-    /// for a world direction `w = R b` and a landmark offset `v` at any angle from it near
-    /// the threshold `a` (up to π, the survey-widened case), `v · w ≥ cos(a) |v|` (as
-    /// computed) implies `|v_z / |v| − w_z| ≤ a + VERIFY_WINDOW_SLACK`. Also checks that the
-    /// window is nearly reached (so that a narrower one, e.g. `0.9 a`, fails).
-    #[test]
-    fn the_verification_window_keeps_every_extension_the_exact_test_accepts() {
-        let mut r = vgps_geometry::synthetic::rng(23);
-        let (mut accepted, mut worst_ratio) = (0, 0f64);
-        for trial in 0..200_000 {
-            let a = if trial % 4 == 0 {
-                r.random_range(1e-4..std::f64::consts::PI)
-            } else {
-                HYPOTHESIS_THRESHOLD_FACTOR * 5.0 * r.random_range(0.01f64..0.2).to_radians()
-            };
-            let pose = vgps_geometry::synthetic::random_pose(&mut r, 100.0);
-            let b = vgps_geometry::synthetic::random_unit_vector(&mut r);
-            let w = pose.rotation * b;
-            // A direction at angle `alpha` from `w`, mostly near the threshold.
-            let alpha = a
-                * r.random_range(0.9..1.1)
-                * if trial % 3 == 0 {
-                    r.random_range(0.0..1.0)
-                } else {
-                    1.0
-                };
-            let p = vgps_geometry::synthetic::random_unit_vector(&mut r);
-            let Some(perp) = vgps_geometry::geometry::try_unit(&(p - w * w.dot(&p))) else {
-                continue;
-            };
-            let u = w * alpha.cos() + perp * alpha.sin();
-            let v = u * r.random_range(0.5..200.0);
-            let range = v.norm();
-            let angle = a.min(std::f64::consts::PI);
-            if v.dot(&w) >= angle.cos() * range {
-                accepted += 1;
-                let gap = (v.z / range - w.z).abs();
-                assert!(
-                    gap <= angle + VERIFY_WINDOW_SLACK,
-                    "trial {trial}: z gap {gap} beyond the window {angle}"
-                );
-                worst_ratio = worst_ratio.max(gap / angle);
-            }
-        }
-        assert!(accepted > 50_000, "{accepted} accepted");
-        assert!(
-            worst_ratio > 0.95,
-            "the window is never nearly reached: {worst_ratio}"
-        );
-    }
 
     #[test]
     fn a_pose_is_the_same_as_itself_and_its_refined_copies() {
