@@ -683,14 +683,14 @@ impl Search<'_> {
     ) -> Search<'a> {
         let cache_budget = CELL_CACHE_BUDGET_BYTES;
         let position_margin = position_margin(options);
+        let noise = options.inlier_threshold_sigmas * options.sigma_rad;
         Search {
             db,
             detections,
             directions,
             options,
-            noise: options.inlier_threshold_sigmas * options.sigma_rad,
-            cos_hypothesis_threshold: (HYPOTHESIS_THRESHOLD_FACTOR
-                * (options.inlier_threshold_sigmas * options.sigma_rad))
+            noise,
+            cos_hypothesis_threshold: (HYPOTHESIS_THRESHOLD_FACTOR * noise)
                 .min(std::f64::consts::PI)
                 .cos(),
             kept: Vec::new(),
