@@ -165,6 +165,38 @@ fn simulate_images_detect_and_replay() {
     assert!(!json.contains("bad_image"), "{json}");
     assert!(report.join("report.json").is_file());
 
+    // The whole drive (87 frames: two batches) on one thread and, pipelined, on three (the
+    // second batch's images detected while the first is localized): the same fixes, and the
+    // time per frame of each stage reported.
+    let mut fixes = Vec::new();
+    for threads in ["1", "3"] {
+        let out_dir = tmp.path().join(format!("replay{threads}"));
+        let out = vgps(&[
+            "replay",
+            d,
+            "--from-images",
+            "--threads",
+            threads,
+            "--out",
+            out_dir.to_str().unwrap(),
+        ]);
+        ok(&out);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            stderr.contains("ms per frame of thread time")
+                && stderr.contains("localizer ")
+                && stderr.contains("(serial: one thread, frames in order)"),
+            "{stderr}"
+        );
+        assert_eq!(
+            stderr.contains("the next batch's while this one is localized"),
+            threads != "1",
+            "{stderr}"
+        );
+        fixes.push(std::fs::read(out_dir.join("fixes.csv")).unwrap());
+    }
+    assert!(fixes[0] == fixes[1], "fixes differ between 1 and 3 threads");
+
     // A truncated PNG, a missing PNG and a wrong-size PNG: reported, counted, not fatal.
     let image = |k: usize, cam: usize| short.join(&frames[k][&format!("image_{cam}")]);
     let bytes = std::fs::read(image(2, 1)).unwrap();

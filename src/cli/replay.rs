@@ -6,14 +6,17 @@
 //! The localizer's state (motion model, mapped surrogates) forces frames to be localized in
 //! time order, on one thread. What does not depend on that state runs in parallel: decoding
 //! and lamp detection of the images (`--threads`), in batches of [`BATCH_FRAMES`] frames
-//! whose detections are then localized in order. From `detections.csv` the localizer alone
-//! runs, on one thread.
+//! whose detections are then localized in order; with more than one thread the next batch's
+//! images are decoded and detected while this batch is localized. From `detections.csv` the
+//! localizer alone runs, on one thread. Unless `--quiet`, the time per frame of each stage is
+//! reported on stderr.
 
 use super::{CliError, ReplaySettings};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 use vgps_camera::imaging::ImagingError;
 use vgps_core::localizer::{
     Frame, GnssPosition, LandmarkMap, Localizer, LocalizerFix, LocalizerOptions, LocalizerStatus,
@@ -245,36 +248,84 @@ pub fn run_report(
     let stream = recording
         .filter(|_| from_images)
         .map(|r| std::sync::Mutex::new(r.stream(BATCH_FRAMES)));
-    for batch in frames.chunks(BATCH_FRAMES) {
-        let detections: Vec<FrameDetections> = if let (Some(r), Some(s)) = (recording, &stream) {
-            detect_recording_batch(&drive, batch, settings.threads, &detector, r, s)
-        } else if from_images {
-            detect_batch(&drive, batch, settings.threads, &detector)
+    let mut timing = StageTiming::default();
+    let image_busy = AtomicU64::new(0);
+    // A batch's images, decoded and detected on `settings.threads` threads.
+    let detect_images = |batch: &[vgps_replay::drive::FrameRecord]| {
+        let started = Instant::now();
+        let detections = if let (Some(r), Some(s)) = (recording, &stream) {
+            detect_recording_batch(
+                &drive,
+                batch,
+                settings.threads,
+                &detector,
+                r,
+                s,
+                &image_busy,
+            )
         } else {
-            file_detections(&drive, batch, err)
+            detect_batch(&drive, batch, settings.threads, &detector, &image_busy)
         };
-        for (f, d) in batch.iter().zip(detections) {
-            let mut step = FrameStep {
-                drive: &drive,
-                map: &map,
-                localizer: &mut localizer,
-                gnss_prior: settings.gnss_prior,
-                imu: settings.imu,
-                used: &mut used,
+        (detections, started.elapsed())
+    };
+    let detect_images = &detect_images;
+    // With more than one thread, the images of the next batch are decoded and detected
+    // while this batch is localized (the localizer's order-bound work overlaps the images').
+    let pipelined = from_images && settings.threads > 1;
+    let batches: Vec<&[vgps_replay::drive::FrameRecord]> = frames.chunks(BATCH_FRAMES).collect();
+    std::thread::scope(|scope| {
+        let mut next: Option<std::thread::ScopedJoinHandle<'_, _>> = None;
+        for (index, &batch) in batches.iter().enumerate() {
+            let waited = Instant::now();
+            let detections: Vec<FrameDetections> = if from_images {
+                let (d, took) = match next.take() {
+                    Some(handle) => handle
+                        .join()
+                        .unwrap_or_else(|_| (failed_batch(batch.len()), Duration::ZERO)),
+                    None => detect_images(batch),
+                };
+                timing.image_wall += took;
+                d
+            } else {
+                file_detections(&drive, batch, err)
             };
-            let (record, frame) = step.record(f, d, err);
-            live.send(&record, err);
-            records.push(record);
-            if combined {
-                kept_frames.push(frame);
+            timing.waited += waited.elapsed();
+            if pipelined && let Some(&following) = batches.get(index + 1) {
+                next = Some(scope.spawn(move || detect_images(following)));
+            }
+            let localizing = Instant::now();
+            for (f, d) in batch.iter().zip(detections) {
+                let mut step = FrameStep {
+                    drive: &drive,
+                    map: &map,
+                    localizer: &mut localizer,
+                    gnss_prior: settings.gnss_prior,
+                    imu: settings.imu,
+                    used: &mut used,
+                };
+                let (record, frame) = step.record(f, d, err);
+                live.send(&record, err);
+                records.push(record);
+                if combined {
+                    kept_frames.push(frame);
+                }
+            }
+            timing.localized += localizing.elapsed();
+            if let Some(bar) = &progress {
+                bar.inc(batch.len() as u64);
             }
         }
-        if let Some(bar) = &progress {
-            bar.inc(batch.len() as u64);
-        }
-    }
+    });
+    timing.image_busy = Duration::from_nanos(image_busy.load(Ordering::Relaxed));
     if let Some(bar) = progress {
         bar.finish_and_clear();
+    }
+    if !settings.quiet {
+        let _ = writeln!(
+            err,
+            "vgps: {}",
+            timing.describe(frames.len(), from_images, settings.threads, pipelined)
+        );
     }
     if combined {
         let backward = Localizer::new(Arc::clone(&rig), Arc::clone(&map), options)
@@ -548,12 +599,81 @@ fn visual_of(fix: &LocalizerFix) -> Option<VisualFix> {
     VisualFix::from_localizer(fix)
 }
 
+/// Where a replay's time went: the images' stage (parallel) and the localizer's (serial).
+#[derive(Debug, Default)]
+struct StageTiming {
+    /// Thread time spent decoding and detecting images, summed over the frames.
+    image_busy: Duration,
+    /// Wall time of the batches' image stages, summed (overlapping the localizer's when
+    /// pipelined).
+    image_wall: Duration,
+    /// Wall time the localizing thread spent waiting for a batch's detections (or reading
+    /// them from `detections.csv`).
+    waited: Duration,
+    /// Wall time spent localizing frames, in order, on one thread.
+    localized: Duration,
+}
+
+impl StageTiming {
+    /// One line for people: per frame, the images' thread time and the localizer's time.
+    fn describe(
+        &self,
+        frames: usize,
+        from_images: bool,
+        threads: usize,
+        pipelined: bool,
+    ) -> String {
+        let per_frame = |d: Duration| d.as_secs_f64() * 1e3 / frames.max(1) as f64;
+        let localizer = format!(
+            "localizer {:.2} ms per frame (serial: one thread, frames in order)",
+            per_frame(self.localized)
+        );
+        if !from_images {
+            return format!("time: {localizer}, detections read from the drive");
+        }
+        format!(
+            "time: images {:.2} ms per frame of thread time, {:.2} ms of wall (decode + detect, \
+             {threads} thread{}{}), {localizer}, {:.2} ms per frame waiting for images",
+            per_frame(self.image_busy),
+            per_frame(self.image_wall),
+            if threads == 1 { "" } else { "s" },
+            if pipelined {
+                ", the next batch's while this one is localized"
+            } else {
+                ""
+            },
+            per_frame(self.waited)
+        )
+    }
+}
+
+/// `f()`, its duration added to `busy` (nanoseconds).
+fn timed<T>(busy: &AtomicU64, f: impl FnOnce() -> T) -> T {
+    let started = Instant::now();
+    let value = f();
+    let nanos = u64::try_from(started.elapsed().as_nanos()).unwrap_or(u64::MAX);
+    busy.fetch_add(nanos, Ordering::Relaxed);
+    value
+}
+
+/// One `Bad` result per frame of a batch whose detection thread failed, so that frames stay
+/// aligned with their records.
+fn failed_batch(frames: usize) -> Vec<FrameDetections<'static>> {
+    (0..frames)
+        .map(|_| FrameDetections::Bad {
+            message: "detection thread failed".into(),
+            unusable_images: None,
+        })
+        .collect()
+}
+
 /// Decodes and detects the images of a batch of frames on `threads` threads.
 fn detect_batch(
     drive: &Drive,
     batch: &[vgps_replay::drive::FrameRecord],
     threads: usize,
     detector: &ImageDetector,
+    busy: &AtomicU64,
 ) -> Vec<FrameDetections<'static>> {
     let chunk = batch.len().div_ceil(threads).max(1);
     std::thread::scope(|scope| {
@@ -564,12 +684,14 @@ fn detect_batch(
                     frames
                         .iter()
                         .map(|f| {
-                            detect_frame(drive, f, detector, &mut |_, name| {
-                                let path = drive.dir().join(name);
-                                match std::fs::read(&path) {
-                                    Ok(bytes) => Ok((path, bytes)),
-                                    Err(source) => Err(ImagingError::Io { path, source }),
-                                }
+                            timed(busy, || {
+                                detect_frame(drive, f, detector, &mut |_, name| {
+                                    let path = drive.dir().join(name);
+                                    match std::fs::read(&path) {
+                                        Ok(bytes) => Ok((path, bytes)),
+                                        Err(source) => Err(ImagingError::Io { path, source }),
+                                    }
+                                })
                             })
                         })
                         .collect::<Vec<_>>()
@@ -579,17 +701,8 @@ fn detect_batch(
             .collect();
         handles
             .into_iter()
-            .flat_map(|(h, n)| {
-                // One result per frame even if the thread failed, so frames stay aligned.
-                h.join().unwrap_or_else(|_| {
-                    (0..n)
-                        .map(|_| FrameDetections::Bad {
-                            message: "detection thread failed".into(),
-                            unusable_images: None,
-                        })
-                        .collect()
-                })
-            })
+            // One result per frame even if the thread failed, so frames stay aligned.
+            .flat_map(|(h, n)| h.join().unwrap_or_else(|_| failed_batch(n)))
             .collect()
     })
 }
@@ -604,6 +717,7 @@ fn detect_recording_batch(
     detector: &ImageDetector,
     recording: &RecordingImages,
     stream: &Mutex<FrameStream>,
+    busy: &AtomicU64,
 ) -> Vec<FrameDetections<'static>> {
     let taken = AtomicUsize::new(0);
     let worker = || {
@@ -622,7 +736,7 @@ fn detect_recording_batch(
             };
             let frame = &batch[i];
             let detections = match images {
-                Some(mut images) if images.frame == frame.frame => {
+                Some(mut images) if images.frame == frame.frame => timed(busy, || {
                     detect_frame(drive, frame, detector, &mut |camera, name| {
                         let path = recording.describe(name);
                         match images.images.get_mut(camera).and_then(Option::take) {
@@ -637,7 +751,7 @@ fn detect_recording_batch(
                             }),
                         }
                     })
-                }
+                }),
                 other => FrameDetections::Bad {
                     message: format!(
                         "{}: the images of frame {} could not be read again (got {})",
