@@ -12,7 +12,11 @@
 //! - `decode_detect`: `decode_image` + `StreetLampDetector::detect`.
 //!
 //! Each figure is the per-image median over images of the best of REPEATS runs (ms);
-//! `frames_per_s` = 1000 / (6 × median decode_detect), one core.
+//! `frames_per_s` = 1000 / (6 × median decode_detect), one core. With FRAMES 0 nothing is
+//! rendered and the JPEGs already in DIR are timed, e.g. a Ladybug5 drive's
+//! (`vgps simulate --preset short --length-m 6 --images --night-scene realistic
+//! --jpeg-quality 90 --calibration calibration/ladybug5_example.ini --out D`, then
+//! `jpeg_timing D/images 0 5`: 6 × 2448×2048 per frame).
 use image::ImageDecoder;
 use std::hint::black_box;
 use std::path::PathBuf;
