@@ -1439,6 +1439,15 @@ fn rows() -> Vec<Row> {
             ],
         },
         Row {
+            name: "replay: a matcher memory that is not a number of MiB",
+            setup: |t| {
+                drive(t);
+            },
+            args: &["replay", "{t}/d", "--quiet", "--matcher-memory-mib", "1.5"],
+            code: 2,
+            stderr: &["--matcher-memory-mib"],
+        },
+        Row {
             name: "replay: output directory under a regular file (fails before localizing)",
             setup: |t| {
                 drive(t);

@@ -346,6 +346,7 @@ fn replay_settings(
         up_tolerance_rad: None,
         // The replay's default: 150 m for building corners from the images, else 80 m.
         visibility_range_m: None,
+        matcher_memory_bytes: super::replay::DEFAULT_MATCHER_MEMORY_MIB as usize * (1 << 20),
         surrogate_drift_per_m: vgps_core::localizer::DEFAULT_SURROGATE_DRIFT_PER_M,
         from_images,
         image_size: None,

@@ -34,6 +34,9 @@ use vgps_replay::report::{
 pub const BAD_IMAGE_STATUS: &str = "bad_image";
 /// Frames decoded and detected together before they are localized in order.
 pub const BATCH_FRAMES: usize = 64;
+/// Default of `--matcher-memory-mib`: 1 GiB, four times the library's default
+/// ([`vgps_core::matcher::DEFAULT_CACHE_BUDGET_BYTES`]): a replay runs on a workstation.
+pub const DEFAULT_MATCHER_MEMORY_MIB: u32 = 1024;
 
 /// Output formats of the summary on stdout.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -105,6 +108,13 @@ pub struct ReplayArgs {
     /// (docs/dev/journal.md, 2026-11-27).
     #[arg(long, value_name = "M", value_parser = super::args::parse_positive)]
     pub visibility_range_m: Option<f64>,
+    /// Memory the matcher may keep per search for its pair tables (MiB). The fixes are the
+    /// same for any value; a larger budget rebuilds fewer tables in wide searches (cold
+    /// starts, searches around the last place known). 256 (the library's default) lowers the
+    /// peak memory of a drive with long searches from about 1.4 to 0.55 GB and takes about
+    /// 40 % more time on them (docs/matcher.md, "Memory").
+    #[arg(long, value_name = "MIB", default_value_t = DEFAULT_MATCHER_MEMORY_MIB)]
+    pub matcher_memory_mib: u32,
     /// Drift of a pose carried on surrogate landmarks, in percent of the distance travelled
     /// since the fix last rested on surveyed landmarks (1σ per axis): added to the reported
     /// covariance, nothing else. The default (0.1 %) covers the detectors measured in
@@ -378,6 +388,7 @@ fn localizer_options(
                 from_images,
                 settings.detector,
             ),
+            cache_budget_bytes: settings.matcher_memory_bytes,
             ..LocalizerOptions::default().matcher
         },
         ..LocalizerOptions::default()

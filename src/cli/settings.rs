@@ -117,6 +117,8 @@ pub struct ReplaySettings {
     pub up_tolerance_rad: Option<f64>,
     /// `--visibility-range-m`: the matcher's visibility range (default: by detector).
     pub visibility_range_m: Option<f64>,
+    /// `--matcher-memory-mib` in bytes: the matcher's cache budget per search.
+    pub matcher_memory_bytes: usize,
     /// `--surrogate-drift-percent` as a fraction: the drift of a pose carried on
     /// surrogates per metre (1σ), added to the reported covariance.
     pub surrogate_drift_per_m: f64,
@@ -325,6 +327,7 @@ impl TryFrom<ReplayArgs> for ReplaySettings {
             imu: !a.no_imu,
             up_tolerance_rad: a.up_tolerance_deg.map(f64::to_radians),
             visibility_range_m: a.visibility_range_m,
+            matcher_memory_bytes: (a.matcher_memory_mib as usize).saturating_mul(1 << 20),
             surrogate_drift_per_m: a.surrogate_drift_percent / 100.0,
             from_images: a.from_images,
             image_size: a.image_size,

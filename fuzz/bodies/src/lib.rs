@@ -846,6 +846,9 @@ pub fn matcher(data: &[u8]) {
         // 0, 0.4995 or 0.999.
         min_link_probability: ((c[5] / 16) % 3) as f64 * 0.4995,
         max_false_alarms: MatchOptions::default().max_false_alarms,
+        // No cache, a small one (cells turn transient part-way) or the default.
+        cache_budget_bytes: [0, 1 << 16, MatchOptions::default().cache_budget_bytes]
+            [(input.seed % 3) as usize],
     };
     let Ok(result) = match_detections(&db, &detections, &area, &options) else {
         return;

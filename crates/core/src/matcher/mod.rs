@@ -400,7 +400,22 @@ pub struct MatchOptions {
     /// alarms — the poses tried times the chance that a wrong one gathers as many inliers —
     /// exceeds it is refused as `no_match` (docs/matcher-acceptance.md).
     pub max_false_alarms: f64,
+    /// Bytes a search may keep in its cells' pair values and pair tables (default
+    /// [`DEFAULT_CACHE_BUDGET_BYTES`]). The results are the same for any value: a cell
+    /// beyond the budget builds a detection triple's tables afresh each time, so a larger
+    /// budget makes wide searches (cold starts, searches around the last place known)
+    /// faster at the cost of memory (docs/matcher.md, "Memory").
+    pub cache_budget_bytes: usize,
 }
+
+/// Default of [`MatchOptions::cache_budget_bytes`]: 256 MiB. A cold start over a city has
+/// tens of thousands of cells of hundreds of candidates each: kept for every cell, the dense
+/// pair values alone took 9 GB of a 12 GB frame (issue #25, 150 m visibility range). Cells
+/// beyond the budget compute what a triple reads each time; the tables' bits, and so the
+/// search's results, are the same. A prior frame's 21 cells need a few MB. On the `short`
+/// night drive's replay (30–50 detections, searches up to 400 m around the last place known)
+/// 256 MiB peaks at 0.55 GB; 1 GiB keeps nearly every cell, 40 % less time at 1.4 GB.
+pub const DEFAULT_CACHE_BUDGET_BYTES: usize = 1 << 28;
 
 impl Default for MatchOptions {
     fn default() -> Self {
@@ -421,6 +436,7 @@ impl Default for MatchOptions {
             max_rounds: DEFAULT_MAX_ROUNDS,
             min_link_probability: DEFAULT_MIN_LINK_PROBABILITY,
             max_false_alarms: nfa::DEFAULT_MAX_FALSE_ALARMS,
+            cache_budget_bytes: DEFAULT_CACHE_BUDGET_BYTES,
         }
     }
 }

@@ -114,20 +114,12 @@ pub(super) enum CellCache {
     /// Not visited by a detection triple yet (no cache buffer is set up).
     Undecided,
     /// The cell keeps its dense `m × m` pair values and its pair tables (charged to the
-    /// frame's [`CELL_CACHE_BUDGET_BYTES`]).
+    /// search's [`super::MatchOptions::cache_budget_bytes`]).
     Stored,
     /// The budget was spent: the cell holds no cache and builds a triple's three tables
     /// afresh, into a scratch shared by every cell, each time a triple visits it.
     Transient,
 }
-
-/// The bytes of pair values and pair tables that the cells of one search may keep at once
-/// (256 MiB). A cold start over a city has tens of thousands of cells of hundreds of
-/// candidates each: kept for every cell, the dense pair values alone took 9 GB of a 12 GB
-/// frame (issue #25, 150 m visibility range). Cells beyond the budget compute what a triple
-/// reads each time ([`CellCache::Transient`]); the tables' bits, and so the search's
-/// results, are the same. A prior frame's 21 cells need a few MB.
-pub(super) const CELL_CACHE_BUDGET_BYTES: usize = 1 << 28;
 
 /// The bytes a cell's cache buffers hold (their capacities).
 pub(super) fn cached_bytes(cell: &CellData) -> usize {

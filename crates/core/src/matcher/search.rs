@@ -6,7 +6,7 @@
 use super::azimuth::{LevelledTriple, azimuths_can_meet};
 use super::cells::cells;
 use super::conclusion::conclude;
-use super::pairs::{CELL_CACHE_BUDGET_BYTES, PairContext, cell_data};
+use super::pairs::{PairContext, cell_data};
 use super::scoring::ConclusionCache;
 use super::scratch::{Cells, SolvedTriples, shuffle};
 use super::{
@@ -159,7 +159,7 @@ pub(super) struct Search<'a> {
     pub(super) widened_area: SearchArea,
     /// Landmark sets, refinements and scratch kept for the conclusion.
     pub(super) conclusion: ConclusionCache,
-    /// The bytes the cells may keep in pair values and tables ([`CELL_CACHE_BUDGET_BYTES`]),
+    /// The bytes the cells may keep in pair values and tables ([`MatchOptions::cache_budget_bytes`]),
     /// what is left of it, the most held at once, and the cells stored and transient
     /// ([`super::pairs::CellCache`]).
     pub(super) cache_budget: usize,
@@ -216,7 +216,7 @@ pub(super) fn run(
     area: &SearchArea,
     options: &MatchOptions,
 ) -> Result<MatchResult, MatchError> {
-    run_with_cache_budget(db, detections, area, options, CELL_CACHE_BUDGET_BYTES)
+    run_with_cache_budget(db, detections, area, options, options.cache_budget_bytes)
         .map(|(result, _)| result)
 }
 
@@ -661,7 +661,7 @@ fn round_triples(
 }
 
 impl Search<'_> {
-    /// The search with a cache budget of `bytes` instead of [`CELL_CACHE_BUDGET_BYTES`].
+    /// The search with a cache budget of `bytes` instead of the options'.
     fn with_cache_budget(self, bytes: usize) -> Self {
         self.cache_left.set(bytes);
         Self {
@@ -681,7 +681,7 @@ impl Search<'_> {
         area: &SearchArea,
         options: &'a MatchOptions,
     ) -> Search<'a> {
-        let cache_budget = CELL_CACHE_BUDGET_BYTES;
+        let cache_budget = options.cache_budget_bytes;
         let position_margin = position_margin(options);
         let noise = options.inlier_threshold_sigmas * options.sigma_rad;
         Search {

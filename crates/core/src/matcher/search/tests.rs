@@ -82,6 +82,15 @@ fn a_cold_start_gives_the_same_result_whatever_the_cache_budget() {
 
     let (none, none_use) = run(0);
     assert_eq!(none, full);
+    // The public entry takes the budget from the options.
+    let no_cache = MatchOptions {
+        cache_budget_bytes: 0,
+        ..options
+    };
+    assert_eq!(
+        super::run(&db, &detections, &area, &no_cache).as_ref(),
+        Ok(&full)
+    );
     assert_eq!(none_use.stored_cells, 0);
     assert_eq!(none_use.peak_bytes, 0);
     assert!(none_use.transient_cells > 1_000, "{none_use:?}");
