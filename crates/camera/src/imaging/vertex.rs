@@ -32,6 +32,12 @@
 //!    is darker on average than [`VertexConfig::min_open_side_dn`] is dropped
 //!    ([`Rejection::DarkOpenSide`]).
 //!
+//! [`VertexDetector::detect`] skips steps 2–5 for a candidate with no pixel as bright as
+//! [`VertexConfig::min_open_side_dn`] within the open side's reach (a necessary condition
+//! of step 5, from block maxima of the image), and the Shi–Tomasi response is computed
+//! exactly only where a 16-bit bound lets a pixel reach [`VertexConfig::min_response`]
+//! (`corner_response`): the detections are the same as without these shortcuts.
+//!
 //! The strength is the weakest edge's mean gradient (DN per pixel).
 
 use super::corner_response::{Gradients, Scratch};
