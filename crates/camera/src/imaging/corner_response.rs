@@ -98,6 +98,71 @@ pub(crate) struct Scratch {
     products: Vec<i32>,
     /// Vertical window sums of one row.
     sums: Vec<i32>,
+    /// [`Scratch::shi_tomasi_bounded`]: horizontal window sums of the bound's terms of
+    /// `kx` and `ky` for the last 2·radius + 2 rows.
+    bound_ring: Vec<i16>,
+    /// The bound's terms of one row, padded by the radius on both sides.
+    bound_terms: Vec<i16>,
+    /// The bound's vertical window sums of one row (`kx`, then `ky`).
+    bound_sums: Vec<i16>,
+    /// The brightest pixel of each [`BRIGHT_BLOCK`]² block of the last image, row-major
+    /// ([`Scratch::block_maxima`]).
+    bright: Vec<u8>,
+    /// Blocks per row of [`Scratch::bright`].
+    bright_w: usize,
+    /// Column maxima of a block row (buffer).
+    column_max: Vec<u8>,
+}
+
+/// Side of the blocks of [`Scratch::block_maxima`] (pixels).
+pub(crate) const BRIGHT_BLOCK: usize = 8;
+
+impl Scratch {
+    /// Fills the block maxima of the `w` × `h` 8-bit image `src` (row-major; shorter than
+    /// `w · h`: no block), for [`Scratch::brightest_near`].
+    pub fn block_maxima(&mut self, src: &[u8], w: usize, h: usize) {
+        let b = BRIGHT_BLOCK;
+        let (bw, bh) = (w.div_ceil(b), h.div_ceil(b));
+        self.bright.clear();
+        self.bright_w = bw;
+        if src.len() < w * h {
+            self.bright_w = 0;
+            return;
+        }
+        self.column_max.resize(w, 0);
+        for by in 0..bh {
+            let m = &mut self.column_max;
+            m.fill(0);
+            for row in src[by * b * w..((by + 1) * b).min(h) * w].chunks_exact(w) {
+                for (m, p) in m.iter_mut().zip(row) {
+                    *m = (*m).max(*p);
+                }
+            }
+            self.bright
+                .extend(m.chunks(b).map(|c| c.iter().copied().fold(0, u8::max)));
+        }
+    }
+
+    /// The brightest pixel of the last [`Scratch::block_maxima`] image within `radius` of
+    /// `(u, v)` (a square; the blocks that meet it, so possibly brighter than the square's
+    /// own maximum, never darker), or `u8::MAX` when there are no block maxima.
+    pub fn brightest_near(&self, u: usize, v: usize, radius: usize) -> u8 {
+        let b = BRIGHT_BLOCK;
+        let bw = self.bright_w;
+        if bw == 0 || self.bright.len() < bw {
+            return u8::MAX;
+        }
+        let bh = self.bright.len() / bw;
+        let (x0, x1) = (u.saturating_sub(radius) / b, ((u + radius) / b).min(bw - 1));
+        let (y0, y1) = (v.saturating_sub(radius) / b, ((v + radius) / b).min(bh - 1));
+        let mut most = 0;
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                most = most.max(self.bright[y * bw + x]);
+            }
+        }
+        most
+    }
 }
 
 impl Scratch {
@@ -114,6 +179,20 @@ impl Scratch {
     /// then spent only where it may be a candidate (most of a day image is sky or facade).
     pub fn shi_tomasi(&mut self, radius: usize, floor: Option<f32>) {
         let (w, h) = (self.gradients.w, self.gradients.h);
+        // The bounded path needs the detector's window, a floor that skips something, and
+        // rows and columns at least as long as the window.
+        let bound = match skip_below(floor, 2 * radius + 1) / 64 - 25 {
+            b if radius == BOUNDED_RADIUS && w > 2 * radius && h > 2 * radius && b > 0 => {
+                b.min(i32::from(BOUND_TERM_MAX)) as i16
+            }
+            _ => return self.shi_tomasi_sliding(radius, floor),
+        };
+        self.shi_tomasi_bounded(floor, bound);
+    }
+
+    /// [`Scratch::shi_tomasi`] by sliding exact window sums over every pixel (any radius).
+    fn shi_tomasi_sliding(&mut self, radius: usize, floor: Option<f32>) {
+        let (w, h) = (self.gradients.w, self.gradients.h);
         let k = 2 * radius + 1;
         // Every element is written below: no clearing pass.
         self.response.resize(w * h, 0.0);
@@ -127,14 +206,7 @@ impl Scratch {
         self.sums.clear();
         self.sums.resize(3 * w, 0);
         let count = (k * k) as f32;
-        // The integer diagonal sum below which a response is certainly below `floor`.
-        let skip_below = match floor {
-            Some(f) if f.is_finite() && f > 1.0 => {
-                (((f64::from(f) - 0.1) * 64.0 * f64::from(count)).floor()).min(i32::MAX as f64)
-                    as i32
-            }
-            _ => i32::MIN,
-        };
+        let skip_below = skip_below(floor, k);
         let mut computed = 0; // rows with horizontal sums in the ring
         let mut ensure = |ring: &mut [i32], products: &mut [i32], last: usize| {
             while computed <= last {
@@ -167,6 +239,197 @@ impl Scratch {
             }
         }
     }
+}
+
+/// The integer diagonal sum (of `k`² squared Sobel sums) below which a response is
+/// certainly below `floor` ([`Scratch::shi_tomasi`]); `i32::MIN` without a floor.
+fn skip_below(floor: Option<f32>, k: usize) -> i32 {
+    let count = (k * k) as f32;
+    match floor {
+        Some(f) if f.is_finite() && f > 1.0 => {
+            (((f64::from(f) - 0.1) * 64.0 * f64::from(count)).floor()).min(i32::MAX as f64) as i32
+        }
+        _ => i32::MIN,
+    }
+}
+
+/// The window radius of [`Scratch::shi_tomasi_bounded`] (the detector's 5 × 5).
+const BOUNDED_RADIUS: usize = 2;
+/// Largest term of the bound's window sums: 25 of them stay below 2¹⁵ (the sums are compared as `i16`, which SSE2 has).
+const BOUND_TERM_MAX: i16 = 1310;
+
+/// The bound's term of a Sobel sum `k` (|k| ≤ 1020): `⌊k² / 64⌋`, at most
+/// [`BOUND_TERM_MAX`]. As `(32·k)² / 2¹⁶`, a high-half 16-bit multiplication (8 lanes);
+/// the clamp to ±1023 keeps `32·k` in `i16` whatever the input.
+#[inline]
+fn bound_term(k: i16) -> i16 {
+    let s = i32::from(k.clamp(-1023, 1023) * 32);
+    (((s * s) >> 16) as i16).min(BOUND_TERM_MAX)
+}
+
+impl Scratch {
+    /// [`Scratch::shi_tomasi`] for the 5 × 5 window with a floor: the exact window sums
+    /// and eigenvalues only for the 16-pixel chunks ([`EIGEN_CHUNK`]) in which some pixel
+    /// may pass the diagonal test, the rest `−∞` (what the exact test gives there), so the
+    /// responses are bit-identical to [`Scratch::shi_tomasi_sliding`]'s.
+    ///
+    /// The test of a chunk slides 16-bit window sums (8 lanes) of the terms
+    /// `t = min(⌊k² / 64⌋, 1310)` of `kx` and of `ky`: a pixel whose exact sum `Σk²` reaches
+    /// the integer floor `s` has `Σ⌊k² / 64⌋ > s / 64 − 25` (25 terms, each rounded down by
+    /// under 1), and the clamp only lowers a sum that already reaches the clamp's value, so
+    /// `Σt ≥ bound = min(⌊s / 64⌋ − 25, 1310)`. Sums of 25 terms ≤ 1310 fit `i16`, so the
+    /// sliding window (wrapping additions and subtractions) stays exact. Most of a day
+    /// image is sky or facade: a few per cent of the chunks are computed.
+    fn shi_tomasi_bounded(&mut self, floor: Option<f32>, bound: i16) {
+        let radius = BOUNDED_RADIUS;
+        let (w, h) = (self.gradients.w, self.gradients.h);
+        let k = 2 * radius + 1;
+        self.response.resize(w * h, 0.0);
+        let count = (k * k) as f32;
+        let skip_below = skip_below(floor, k);
+        let slots = k + 1;
+        self.bound_ring.resize(slots * 2 * w, 0);
+        self.bound_terms.resize(w + 2 * radius, 0);
+        self.bound_sums.clear();
+        self.bound_sums.resize(2 * w, 0);
+        let g = &self.gradients;
+        let mut computed = 0; // rows with horizontal sums in the ring
+        let mut ensure = |ring: &mut [i16], terms: &mut [i16], last: usize| {
+            while computed <= last {
+                let slot = &mut ring[(computed % slots) * 2 * w..(computed % slots + 1) * 2 * w];
+                let (sx, sy) = slot.split_at_mut(w);
+                let row = computed * w..(computed + 1) * w;
+                bound_row_sums(&g.kx[row.clone()], terms, sx);
+                bound_row_sums(&g.ky[row], terms, sy);
+                computed += 1;
+            }
+        };
+        ensure(&mut self.bound_ring, &mut self.bound_terms, radius);
+        let slot = |row: usize| (row % slots) * 2 * w..(row % slots + 1) * 2 * w;
+        for d in 0..k {
+            let row = d.saturating_sub(radius).min(h - 1);
+            for (s, x) in self.bound_sums.iter_mut().zip(&self.bound_ring[slot(row)]) {
+                *s = s.wrapping_add(*x);
+            }
+        }
+        for v in 0..h {
+            let (bx, by) = self.bound_sums.split_at(w);
+            let out = &mut self.response[v * w..(v + 1) * w];
+            // The row at `−∞` in one pass, then the chunks that may pass (fixed-size
+            // chunks: each test is a few vector instructions, no loop).
+            out.fill(f32::NEG_INFINITY);
+            let (cx, rest_x) = bx.as_chunks::<EIGEN_CHUNK>();
+            let (cy, rest_y) = by.as_chunks::<EIGEN_CHUNK>();
+            for (i, (cx, cy)) in cx.iter().zip(cy).enumerate() {
+                // `fold`, not `any`: no early exit.
+                let live = cx
+                    .iter()
+                    .zip(cy)
+                    .fold(false, |live, (a, c)| live | ((*a).min(*c) >= bound));
+                if live {
+                    let u0 = i * EIGEN_CHUNK;
+                    exact_chunk(g, v, u0, &mut out[u0..u0 + EIGEN_CHUNK], count, skip_below);
+                }
+            }
+            let u0 = w - rest_x.len();
+            if rest_x
+                .iter()
+                .zip(rest_y)
+                .any(|(a, c)| (*a).min(*c) >= bound)
+            {
+                exact_chunk(g, v, u0, &mut out[u0..], count, skip_below);
+            }
+            if v + 1 < h {
+                let (enter, leave) = ((v + radius + 1).min(h - 1), v.saturating_sub(radius));
+                ensure(&mut self.bound_ring, &mut self.bound_terms, enter);
+                let (add, sub) = (&self.bound_ring[slot(enter)], &self.bound_ring[slot(leave)]);
+                for (s, (a, b)) in self.bound_sums.iter_mut().zip(add.iter().zip(sub)) {
+                    *s = s.wrapping_add(*a).wrapping_sub(*b);
+                }
+            }
+        }
+    }
+}
+
+/// The horizontal 5-pixel window sums (columns clamped) of the bound's terms of the Sobel
+/// sums `k` (one row) into `out`; `terms` is a buffer of `k.len() + 4`.
+fn bound_row_sums(k: &[i16], terms: &mut [i16], out: &mut [i16]) {
+    let w = k.len();
+    let r = BOUNDED_RADIUS;
+    for (t, x) in terms[r..r + w].iter_mut().zip(k) {
+        *t = bound_term(*x);
+    }
+    for i in 0..r {
+        terms[i] = terms[r];
+        terms[r + w + i] = terms[r + w - 1];
+    }
+    let p = &terms[..w + 2 * r];
+    let taps = p.iter().zip(&p[1..]).zip(&p[2..]).zip(&p[3..]).zip(&p[4..]);
+    for (s, ((((a, b), c), d), e)) in out.iter_mut().zip(taps) {
+        *s = a
+            .wrapping_add(*b)
+            .wrapping_add(*c)
+            .wrapping_add(*d)
+            .wrapping_add(*e);
+    }
+}
+
+/// The responses of the pixels `u0 … u0 + out.len()` of row `v` (at most [`EIGEN_CHUNK`])
+/// from their exact 5 × 5 window sums (rows and columns clamped), as [`eigen_row`].
+fn exact_chunk(g: &Gradients, v: usize, u0: usize, out: &mut [f32], count: f32, skip_below: i32) {
+    const N: usize = EIGEN_CHUNK;
+    const R: usize = BOUNDED_RADIUS;
+    let (w, h) = (g.w, g.h);
+    let n = out.len().min(N);
+    let (mut xx, mut yy, mut xy) = ([0i32; N], [0i32; N], [0i32; N]);
+    if v >= R && v + R < h && u0 >= R && u0 + n + R <= w {
+        // Inside the image: the products of the 5 rows' n + 4 pixels, summed by columns.
+        let (mut pxx, mut pyy, mut pxy) = ([0i32; N + 2 * R], [0i32; N + 2 * R], [0i32; N + 2 * R]);
+        for row in v - R..=v + R {
+            let span = row * w + u0 - R..row * w + u0 + n + R;
+            let (kx, ky) = (&g.kx[span.clone()], &g.ky[span]);
+            for (((a, b), c), (x, y)) in pxx
+                .iter_mut()
+                .zip(pyy.iter_mut())
+                .zip(pxy.iter_mut())
+                .zip(kx.iter().zip(ky))
+            {
+                let (x, y) = (i32::from(*x), i32::from(*y));
+                *a += x * x;
+                *b += y * y;
+                *c += x * y;
+            }
+        }
+        for d in 0..=2 * R {
+            for j in 0..n {
+                xx[j] += pxx[j + d];
+                yy[j] += pyy[j + d];
+                xy[j] += pxy[j + d];
+            }
+        }
+    } else {
+        // At the image's edge: clamped rows and columns, as the sliding sums.
+        let clamp = |i: usize, d: usize, len: usize| (i + d).saturating_sub(R).min(len - 1);
+        for j in 0..n {
+            for dv in 0..=2 * R {
+                for du in 0..=2 * R {
+                    let at = clamp(v, dv, h) * w + clamp(u0 + j, du, w);
+                    let (x, y) = (i32::from(g.kx[at]), i32::from(g.ky[at]));
+                    xx[j] += x * x;
+                    yy[j] += y * y;
+                    xy[j] += x * y;
+                }
+            }
+        }
+    }
+    eigen_row(
+        &mut out[..n],
+        &xx[..n],
+        &yy[..n],
+        &xy[..n],
+        count,
+        skip_below,
+    );
 }
 
 /// Lanes of [`eigen_row`]'s chunks: a whole chunk of skipped pixels (most of a day image)
@@ -392,6 +655,60 @@ mod tests {
             }
         }
         assert!(skipped > 1000, "only {skipped} pixels skipped");
+    }
+
+    /// The bounded response equals the sliding one bit for bit (pixels that cannot pass
+    /// the floor are `−∞` in both), on noisy images of many sizes (widths not a multiple of
+    /// the chunk, images as small as the window) and floors (down to where the bound
+    /// skips nothing, up to where its terms are clamped), while the bound both skips and
+    /// computes chunks.
+    #[test]
+    fn bounded_response_equals_the_sliding_response() {
+        let (mut bounded, mut sliding) = (Scratch::default(), Scratch::default());
+        let (mut skipped, mut computed) = (0, 0);
+        for (k, &(w, h, amplitude)) in [
+            (64, 48, 40),
+            (97, 33, 255),
+            (203, 91, 12),
+            (5, 5, 255),
+            (6, 40, 100),
+            (40, 6, 100),
+            (17, 17, 30),
+            (130, 70, 60),
+        ]
+        .iter()
+        .enumerate()
+        {
+            let src = noisy(w, h, amplitude, 100 + k as u64);
+            bounded.gradients.compute(&src, w, h);
+            sliding.gradients.compute(&src, w, h);
+            for floor in [1.5f32, 2.0, 20.0, 150.0, 1000.0, 20_000.0] {
+                bounded.shi_tomasi(2, Some(floor));
+                sliding.shi_tomasi_sliding(2, Some(floor));
+                for (j, (a, b)) in bounded.response.iter().zip(&sliding.response).enumerate() {
+                    assert_eq!(a.to_bits(), b.to_bits(), "{w}×{h}, floor {floor}, {j}");
+                }
+                assert_eq!(bounded.response.len(), w * h);
+                for row in bounded.response.chunks(w) {
+                    for chunk in row.chunks(EIGEN_CHUNK) {
+                        if chunk.iter().all(|r| *r == f32::NEG_INFINITY) {
+                            skipped += 1;
+                        } else {
+                            computed += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(
+            skipped > 500 && computed > 500,
+            "{skipped} skipped, {computed} computed"
+        );
+        // The bound's term: ⌊k² / 64⌋ clamped, for every Sobel sum.
+        for k in -1020i16..=1020 {
+            let exact = (i32::from(k) * i32::from(k) / 64).min(i32::from(BOUND_TERM_MAX));
+            assert_eq!(i32::from(bound_term(k)), exact, "{k}");
+        }
     }
 
     /// Known answers: a vertical step of 80 DN has the Sobel sum 4·80 on its two sides and

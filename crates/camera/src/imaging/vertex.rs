@@ -32,6 +32,12 @@
 //!    is darker on average than [`VertexConfig::min_open_side_dn`] is dropped
 //!    ([`Rejection::DarkOpenSide`]).
 //!
+//! [`VertexDetector::detect`] skips steps 2–5 for a candidate with no pixel as bright as
+//! [`VertexConfig::min_open_side_dn`] within the open side's reach (a necessary condition
+//! of step 5, from block maxima of the image), and the Shi–Tomasi response is computed
+//! exactly only where a 16-bit bound lets a pixel reach [`VertexConfig::min_response`]
+//! (`corner_response`): the detections are the same as without these shortcuts.
+//!
 //! The strength is the weakest edge's mean gradient (DN per pixel).
 
 use super::corner_response::{Gradients, Scratch};
@@ -368,9 +374,21 @@ impl VertexDetector {
             let mut candidates = self.candidates(scratch, image, mask);
             candidates.sort_by(|a, b| b.0.total_cmp(&a.0));
             candidates.truncate(c.max_candidates);
+            let open_side = self.open_side_reach();
+            if open_side.is_some() {
+                scratch.block_maxima(image.as_raw(), w, h);
+            }
+            let scratch = &*scratch;
             let g = &scratch.gradients;
             candidates
                 .iter()
+                // A necessary condition of the open-side check first (most candidates are
+                // windows and texture on facades, with nothing as bright as the sky near).
+                .filter(|&&(_, u, v)| {
+                    open_side.is_none_or(|(radius, dn)| {
+                        f64::from(scratch.brightest_near(u, v, radius)) >= dn
+                    })
+                })
                 .filter_map(|&(_, u, v)| self.refine(image, g, u, v, camera, false).ok())
                 .collect()
         });
@@ -385,6 +403,20 @@ impl VertexDetector {
             }
         }
         kept
+    }
+
+    /// With the open-side check ([`VertexConfig::min_open_side_dn`] > 0): the radius around
+    /// a candidate (pixels, a square) that holds every pixel the check can sample, and the
+    /// check's threshold. The open side's samples lie at most `patch_radius + 4` pixels from
+    /// the corner, the corner at most `max_shift_px` from the candidate, and a sample is the
+    /// pixel at its rounded position; a mean of pixels reaches the threshold only if one of
+    /// them does. So a candidate with no pixel as bright within this radius cannot give a
+    /// corner, and [`VertexDetector::detect`] skips it before the refinement.
+    fn open_side_reach(&self) -> Option<(usize, f64)> {
+        let c = &self.config;
+        let radius = (c.patch_radius as f64 + 4.0 + c.max_shift_px + 0.5).floor();
+        (c.min_open_side_dn > 0.0 && (0.0..1e6).contains(&radius))
+            .then_some((radius as usize, c.min_open_side_dn))
     }
 
     /// Every candidate of the image (local maxima of the Shi–Tomasi response above
@@ -1448,6 +1480,56 @@ mod tests {
                 "{reason:?} never seen: {reasons:?}"
             );
         }
+    }
+
+    /// The open-side pre-test of `detect` is a necessary condition: every corner `explain`
+    /// accepts (which runs no pre-test) has a pixel of at least `min_open_side_dn` within
+    /// `open_side_reach` of its candidate, and the block maxima never report less than the
+    /// square's brightest pixel; while the pre-test does skip candidates (windows on the
+    /// facades, far from the sky).
+    #[test]
+    fn the_open_side_pre_test_skips_only_candidates_that_give_no_corner() {
+        let image = street(400, 300, 7);
+        let (w, h) = (image.width() as usize, image.height() as usize);
+        let detector = VertexDetector::default();
+        let Some((radius, dn)) = detector.open_side_reach() else {
+            panic!("the default configuration has the open-side check");
+        };
+        assert_eq!(radius, 16);
+        let mut scratch = Scratch::default();
+        scratch.block_maxima(image.as_raw(), w, h);
+        let brightest = |u: usize, v: usize| {
+            let mut most = 0;
+            for y in v.saturating_sub(radius)..(v + radius + 1).min(h) {
+                for x in u.saturating_sub(radius)..(u + radius + 1).min(w) {
+                    most = most.max(image.get_pixel(x as u32, y as u32).0[0]);
+                }
+            }
+            most
+        };
+        let (mut accepted, mut skipped) = (0, 0);
+        for c in detector.explain(&image, None, None) {
+            let exact = brightest(c.u, c.v);
+            assert!(scratch.brightest_near(c.u, c.v, radius) >= exact);
+            if c.outcome.is_ok() {
+                assert!(f64::from(exact) >= dn, "({}, {})", c.u, c.v);
+                accepted += 1;
+            }
+            if f64::from(scratch.brightest_near(c.u, c.v, radius)) < dn {
+                skipped += 1;
+            }
+        }
+        assert!(
+            accepted >= 2 && skipped >= 50,
+            "{accepted} accepted, {skipped} skipped"
+        );
+        // Edge cases: no image, then a one-pixel image.
+        scratch.block_maxima(&[], 0, 0);
+        assert_eq!(scratch.brightest_near(3, 3, 16), u8::MAX);
+        scratch.block_maxima(&[7], 1, 1);
+        assert_eq!(scratch.brightest_near(0, 0, 16), 7);
+        scratch.block_maxima(&[7], 3, 3);
+        assert_eq!(scratch.brightest_near(0, 0, 16), u8::MAX);
     }
 
     /// The chunked candidate scan equals the plain one: every pixel at least
