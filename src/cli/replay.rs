@@ -283,6 +283,10 @@ pub fn run_report(
     // while this batch is localized (the localizer's order-bound work overlaps the images').
     let pipelined = from_images && settings.threads > 1;
     let batches: Vec<&[vgps_replay::drive::FrameRecord]> = frames.chunks(BATCH_FRAMES).collect();
+    // A batch held back until the next one's detections are known, and whether the localizer
+    // was lost at the end of the last batch localized.
+    let mut held: Option<Vec<PendingFrame>> = None;
+    let mut lost = false;
     std::thread::scope(|scope| {
         let mut next: Option<std::thread::ScopedJoinHandle<'_, _>> = None;
         for (index, &batch) in batches.iter().enumerate() {
@@ -304,16 +308,31 @@ pub fn run_report(
                 next = Some(scope.spawn(move || detect_images(following)));
             }
             let localizing = Instant::now();
-            for (f, d) in batch.iter().zip(detections) {
-                let mut step = FrameStep {
-                    drive: &drive,
-                    map: &map,
-                    localizer: &mut localizer,
-                    gnss_prior: settings.gnss_prior,
-                    imu: settings.imu,
-                    used: &mut used,
-                };
-                let (record, frame) = step.record(f, d, err);
+            let mut step = FrameStep {
+                drive: &drive,
+                map: &map,
+                localizer: &mut localizer,
+                gnss_prior: settings.gnss_prior,
+                imu: settings.imu,
+                threads: settings.threads,
+                used: &mut used,
+            };
+            let current = step.pending_batch(batch, detections, err);
+            let mut localized = Vec::new();
+            if let Some(previous) = held.take() {
+                localized.extend(step.localize(previous, &current));
+                lost = localized.last().is_some_and(|(r, _)| r.visual.is_none());
+            }
+            // A localizer lost at the end of a batch searches on the next frames: with more
+            // than one thread, the batch waits for the next one, whose searches may then
+            // start while this one is localized.
+            if lost && settings.threads > 1 && index + 1 < batches.len() {
+                held = Some(current);
+            } else {
+                localized.extend(step.localize(current, &[]));
+                lost = localized.last().is_some_and(|(r, _)| r.visual.is_none());
+            }
+            for (record, frame) in localized {
                 live.send(&record, err);
                 records.push(record);
                 if combined {
@@ -334,13 +353,25 @@ pub fn run_report(
         let _ = writeln!(
             err,
             "vgps: {}",
-            timing.describe(frames.len(), from_images, settings.threads, pipelined)
+            timing.describe(
+                frames.len(),
+                from_images,
+                settings.threads,
+                pipelined,
+                &localizer.batch_stats()
+            )
         );
     }
     if combined {
         let backward = Localizer::new(Arc::clone(&rig), Arc::clone(&map), options)
             .map_err(|e| CliError::Internal(e.to_string()))?;
-        let c = fill_from_backward_pass(backward, kept_frames, &mut records, &mut used);
+        let c = fill_from_backward_pass(
+            backward,
+            kept_frames,
+            settings.threads,
+            &mut records,
+            &mut used,
+        );
         if !settings.quiet {
             let _ = writeln!(
                 err,
@@ -452,32 +483,82 @@ struct FrameStep<'d, 'l> {
     localizer: &'l mut Localizer,
     gnss_prior: bool,
     imu: bool,
+    /// Threads of the localizer's searches run ahead ([`Localizer::process_batch`]).
+    threads: usize,
     /// Frame → ids of the surveyed landmarks its fix used (for the report's map).
     used: &'l mut std::collections::BTreeMap<u64, Vec<String>>,
 }
 
+/// A frame before localization: what its record says besides the fix, and the localizer's
+/// input (or why the frame has none).
+struct PendingFrame {
+    frame: u64,
+    time_s: f64,
+    gnss: Option<vgps_geometry::geo::Geodetic>,
+    truth: Option<Truth>,
+    unusable_images: Option<u32>,
+    input: Result<Frame, String>,
+}
+
 impl FrameStep<'_, '_> {
-    /// Localizes one frame from its detections and returns its report record (a frame
-    /// without usable images is reported as [`BAD_IMAGE_STATUS`] on `err` and in the record).
-    fn record(
+    /// The frames of a batch before localization (a frame without usable images is
+    /// reported as [`BAD_IMAGE_STATUS`] on `err`).
+    fn pending_batch(
+        &self,
+        batch: &[vgps_replay::drive::FrameRecord],
+        detections: Vec<FrameDetections<'_>>,
+        err: &mut dyn Write,
+    ) -> Vec<PendingFrame> {
+        batch
+            .iter()
+            .zip(detections)
+            .map(|(f, d)| self.pending(f, d, err))
+            .collect()
+    }
+
+    /// Localizes a batch of frames and returns their report records with the localizer's
+    /// inputs; `ahead` is the next batch, when known (its searches may start now).
+    fn localize(
         &mut self,
+        pending: Vec<PendingFrame>,
+        ahead: &[PendingFrame],
+    ) -> Vec<(FrameOutcome, Option<Frame>)> {
+        let inputs = |p: &[PendingFrame]| -> Vec<Frame> {
+            p.iter()
+                .filter_map(|p| p.input.as_ref().ok().cloned())
+                .collect()
+        };
+        let mut fixes = self
+            .localizer
+            .process_batch(&inputs(&pending), &inputs(ahead), self.threads)
+            .into_iter();
+        pending
+            .into_iter()
+            .map(|p| {
+                let fix = p.input.is_ok().then(|| fixes.next()).flatten();
+                self.finish(p, fix)
+            })
+            .collect()
+    }
+
+    fn pending(
+        &self,
         f: &vgps_replay::drive::FrameRecord,
         d: FrameDetections<'_>,
         err: &mut dyn Write,
-    ) -> (FrameOutcome, Option<Frame>) {
+    ) -> PendingFrame {
         let gnss = gnss_at(self.drive.gnss(), f.time_s);
         let truth = self.drive.truth_of(f.frame).map(|t| Truth {
             geodetic: t.position,
             heading_deg: vgps_sim::simulate::heading_deg(&t.enu_from_rig),
         });
-        let mut localized = None;
-        let (status, visual, unusable_images, message) = match d {
+        let (unusable_images, input) = match d {
             FrameDetections::Bad {
                 message,
                 unusable_images,
             } => {
                 let _ = writeln!(err, "vgps: frame {}: {message}", f.frame);
-                (BAD_IMAGE_STATUS.to_string(), None, unusable_images, message)
+                (unusable_images, Err(message))
             }
             FrameDetections::Ok {
                 detections: dets,
@@ -499,27 +580,53 @@ impl FrameStep<'_, '_> {
                 };
                 let frame = Frame::from_detections(f.time_s, &dets, self.map, prior)
                     .with_attitude(self.imu.then(|| self.drive.attitude_at(f.time_s)).flatten());
-                let fix = self.localizer.process(&frame);
-                localized = Some(frame);
+                (unusable_images, Ok(frame))
+            }
+        };
+        PendingFrame {
+            frame: f.frame,
+            time_s: f.time_s,
+            gnss,
+            truth,
+            unusable_images,
+            input,
+        }
+    }
+
+    /// A frame's record from its localizer fix (`None` for a frame without input).
+    fn finish(
+        &mut self,
+        p: PendingFrame,
+        fix: Option<LocalizerFix>,
+    ) -> (FrameOutcome, Option<Frame>) {
+        let (status, visual, message, localized) = match (p.input, fix) {
+            (Ok(frame), Some(fix)) => {
                 if let Some(e) = &fix.estimate {
-                    self.used.insert(f.frame, e.landmarks.clone());
+                    self.used.insert(p.frame, e.landmarks.clone());
                 }
                 (
                     fix.status.as_str().to_string(),
                     visual_of(&fix),
-                    unusable_images,
                     fix.message,
+                    Some(frame),
                 )
             }
+            (Ok(frame), None) => (
+                LocalizerStatus::NoFix.as_str().to_string(),
+                None,
+                "not localized".to_string(),
+                Some(frame),
+            ),
+            (Err(message), _) => (BAD_IMAGE_STATUS.to_string(), None, message, None),
         };
         let outcome = FrameOutcome {
-            frame: f.frame,
-            time_s: f.time_s,
+            frame: p.frame,
+            time_s: p.time_s,
             status,
             visual,
-            gnss,
-            unusable_images,
-            truth,
+            gnss: p.gnss,
+            unusable_images: p.unusable_images,
+            truth: p.truth,
             message,
         };
         (outcome, localized)
@@ -531,10 +638,11 @@ impl FrameStep<'_, '_> {
 fn fill_from_backward_pass(
     mut localizer: Localizer,
     frames: Vec<Option<Frame>>,
+    threads: usize,
     records: &mut [FrameOutcome],
     used: &mut std::collections::BTreeMap<u64, Vec<String>>,
 ) -> vgps_replay::report::Combination {
-    let fixes = backward_pass(&mut localizer, frames, records);
+    let fixes = backward_pass(&mut localizer, frames, records, threads);
     let mut backward = Vec::with_capacity(fixes.len());
     for (r, fix) in records.iter().zip(fixes) {
         backward.push(fix.map(|fix| {
@@ -562,21 +670,36 @@ fn backward_pass(
     localizer: &mut Localizer,
     frames: Vec<Option<Frame>>,
     forward: &[FrameOutcome],
+    threads: usize,
 ) -> Vec<Option<LocalizerFix>> {
-    let mut out = vec![None; frames.len()];
-    for (k, (frame, record)) in frames.into_iter().zip(forward).enumerate().rev() {
-        let Some(frame) = frame else { continue };
-        let seed = record
-            .visual
-            .as_ref()
-            .map(|v| GnssPosition {
-                position: v.geodetic,
-            })
-            .or(frame.gnss);
-        out[k] = Some(localizer.process_backward(&Frame {
-            gnss: seed,
-            ..frame
-        }));
+    // The frames with input, latest first, each with its seed.
+    let (indices, inputs): (Vec<usize>, Vec<Frame>) = frames
+        .into_iter()
+        .zip(forward)
+        .enumerate()
+        .rev()
+        .filter_map(|(k, (frame, record))| {
+            let frame = frame?;
+            let seed = record
+                .visual
+                .as_ref()
+                .map(|v| GnssPosition {
+                    position: v.geodetic,
+                })
+                .or(frame.gnss);
+            Some((
+                k,
+                Frame {
+                    gnss: seed,
+                    ..frame
+                },
+            ))
+        })
+        .unzip();
+    let mut out = vec![None; forward.len()];
+    let fixes = localizer.process_backward_batch(&inputs, threads);
+    for (k, fix) in indices.into_iter().zip(fixes) {
+        out[k] = Some(fix);
     }
     out
 }
@@ -633,12 +756,31 @@ impl StageTiming {
         from_images: bool,
         threads: usize,
         pipelined: bool,
+        searches: &vgps_core::localizer::BatchStats,
     ) -> String {
         let per_frame = |d: Duration| d.as_secs_f64() * 1e3 / frames.max(1) as f64;
-        let localizer = format!(
-            "localizer {:.2} ms per frame (serial: one thread, frames in order)",
-            per_frame(self.localized)
-        );
+        let localizer = if threads > 1 {
+            format!(
+                "localizer {:.2} ms per frame of wall, of which {:.2} serial (frames in order: \
+                 tracking, planning, {} unplanned search(es)) and {:.2} waiting for {} of {} \
+                 searches run ahead on {threads} threads ({:.2} ms per frame of their thread \
+                 time, {:.2} of it in {} searches not used)",
+                per_frame(self.localized),
+                per_frame(self.localized.saturating_sub(searches.waiting)),
+                searches.unplanned,
+                per_frame(searches.waiting),
+                searches.served,
+                searches.planned,
+                per_frame(searches.worker_time),
+                per_frame(searches.wasted_time),
+                searches.wasted,
+            )
+        } else {
+            format!(
+                "localizer {:.2} ms per frame (serial: one thread, frames in order)",
+                per_frame(self.localized)
+            )
+        };
         if !from_images {
             return format!("time: {localizer}, detections read from the drive");
         }

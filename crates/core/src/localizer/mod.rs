@@ -76,18 +76,18 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+mod batch;
 mod drift;
 pub mod map;
 pub mod track;
 
+pub use batch::{BatchStats, MAX_PLAN_FRAMES};
 pub use map::LandmarkMap;
 
 use crate::mapping::{
     LandmarkMapper, MappedLandmark, MapperOptions, MappingFrame, NearbySurrogate, RigObservation,
 };
-use crate::matcher::{
-    Detection, MatchEstimate, MatchOptions, MatchStatus, SearchArea, match_detections,
-};
+use crate::matcher::{Detection, MatchEstimate, MatchOptions, MatchStatus, SearchArea};
 use crate::measurement::effective_bearing_variance;
 use drift::SurrogateDrift;
 use nalgebra::{Matrix3, Matrix6, Rotation3, UnitQuaternion, Vector3};
@@ -539,6 +539,8 @@ pub struct Localizer {
     neighbours: Vec<usize>,
     /// The path carried on surrogates since the last fix on surveyed landmarks.
     drift: SurrogateDrift,
+    /// The workers and plan of [`Localizer::process_batch`].
+    ahead: batch::SearchAhead,
 }
 
 impl Localizer {
@@ -603,6 +605,7 @@ impl Localizer {
             last_failed_widening_s: None,
             neighbours: Vec::new(),
             drift: SurrogateDrift::default(),
+            ahead: batch::SearchAhead::default(),
         })
     }
 
@@ -633,6 +636,11 @@ impl Localizer {
     /// Processes one frame (see the module docs). Never panics; a frame without a fix gets
     /// a status saying why.
     pub fn process(&mut self, frame: &Frame) -> LocalizerFix {
+        self.process_with(frame, &mut batch::Direct)
+    }
+
+    /// [`Localizer::process`] with its matcher searches run by `searches`.
+    fn process_with(&mut self, frame: &Frame, searches: &mut dyn batch::Searches) -> LocalizerFix {
         let mut fix = LocalizerFix {
             time_s: frame.time_s,
             status: LocalizerStatus::NoFix,
@@ -681,7 +689,13 @@ impl Localizer {
             _ => (None, None),
         };
         if tracked.is_none() {
-            match self.reacquire(frame.time_s, &observations, gnss_enu, frame.attitude) {
+            match self.reacquire(
+                frame.time_s,
+                &observations,
+                gnss_enu,
+                frame.attitude,
+                searches,
+            ) {
                 Ok(t) => tracked = Some(t),
                 Err((status, message)) => {
                     fix.status = status;
@@ -1065,6 +1079,7 @@ impl Localizer {
         observations: &[ObsRay],
         gnss_enu: Option<Vector3<f64>>,
         attitude: Option<AttitudePrior>,
+        searches: &mut dyn batch::Searches,
     ) -> Result<Tracked, Refusal> {
         let (area, source) = self.search_area(time_s, gnss_enu, attitude)?;
 
@@ -1099,7 +1114,13 @@ impl Localizer {
             },
             ..self.options.matcher
         };
-        let result = match_detections(self.map.db(), &detections, &area, &options)
+        let key = batch::SearchKey {
+            detections,
+            area,
+            options,
+        };
+        let result = searches
+            .search(self.map.db(), &key)
             .map_err(|e| (LocalizerStatus::NoFix, e.to_string()))?;
         if widen && options.max_rounds > 1 && result.status != MatchStatus::Ok {
             self.last_failed_widening_s = Some(time_s);
