@@ -54,12 +54,18 @@ fn thin_first_frames(drive: &Path, frames: u64, keep: usize) {
 }
 
 fn replay(drive: &Path, out: &Path, direction: &str) -> std::process::Output {
+    replay_on(drive, out, direction, "2")
+}
+
+fn replay_on(drive: &Path, out: &Path, direction: &str, threads: &str) -> std::process::Output {
     let o = vgps(&[
         "replay",
         drive.to_str().unwrap(),
         "--no-gnss-prior",
         "--direction",
         direction,
+        "--threads",
+        threads,
         "--format",
         "json",
         "--out",
@@ -133,6 +139,17 @@ fn the_backward_pass_fills_frames_without_a_forward_fix_and_keeps_the_forward_on
     assert_eq!(ok(&combined), ok(&forward) + filled);
     for r in &combined[..5] {
         assert_ne!(r["status"], "ok", "frame {}", r["frame"]);
+    }
+    // Both passes give the same fixes on one thread (frame after frame) as on two (the run
+    // above) and three (the searches of a lost localizer run ahead on worker threads).
+    let two = std::fs::read(dir.path().join("combined").join("fixes.csv")).unwrap();
+    for threads in ["1", "3"] {
+        let out = dir.path().join(format!("combined{threads}"));
+        replay_on(&drive, &out, "combined", threads);
+        assert!(
+            std::fs::read(out.join("fixes.csv")).unwrap() == two,
+            "fixes differ between 2 and {threads} threads"
+        );
     }
     // The summary counts what the combination did.
     let report: serde_json::Value = serde_json::from_slice(&combined_run.stdout).unwrap();
