@@ -6,28 +6,23 @@
 use nalgebra::Vector3;
 use std::sync::Arc;
 use vgps_core::localizer::{
-    AttitudePrior, Frame, LAST_KNOWN_SEARCH_INTERVAL_S, LandmarkMap, Localizer, LocalizerOptions,
+    AttitudePrior, Frame, LAST_KNOWN_SEARCH_INTERVAL_S, Localizer, LocalizerOptions,
     LocalizerStatus,
 };
-use vgps_sim::simulate::{Preset, Scenario, SimulatedDrive, simulate};
+
+mod common;
 
 const DEG: f64 = std::f64::consts::PI / 180.0;
 
 /// A 100 m drive (about 60 frames at 5 Hz): its map is small enough for the whole-map
 /// searches to take a fraction of a second each in release.
-fn small_drive() -> SimulatedDrive {
-    let mut scenario = Scenario::preset(Preset::Short, 7);
-    scenario.length_m = 100.0;
-    simulate(&scenario).unwrap()
+fn small_drive() -> common::TestDrive {
+    common::short_drive(7, 100.0)
 }
 
 #[test]
 fn frames_with_an_imu_are_fixed_where_they_otherwise_wait_for_the_cold_start() {
-    let drive = small_drive();
-    let landmarks = drive.surveyed_landmarks().unwrap();
-    let map =
-        Arc::new(LandmarkMap::from_landmarks(&landmarks, Some(drive.scenario.origin)).unwrap());
-    let rig = Arc::new(drive.scenario.rig.clone());
+    let common::TestDrive { drive, map, rig } = small_drive();
     // Frames 2 s apart, beyond the motion model's reach (4 × 0.4 s), and no satellite GPS:
     // without the IMU only the first and the one 10 s later (the cold-start interval) are
     // searched.
@@ -99,11 +94,7 @@ fn frames_with_an_imu_are_fixed_where_they_otherwise_wait_for_the_cold_start() {
 fn a_wrong_heading_prior_finds_no_wrong_fix() {
     // The heading gate drops the true poses: the frame is not fixed (or, if other poses
     // pass, not wrongly: every fix is checked against the truth).
-    let drive = small_drive();
-    let landmarks = drive.surveyed_landmarks().unwrap();
-    let map =
-        Arc::new(LandmarkMap::from_landmarks(&landmarks, Some(drive.scenario.origin)).unwrap());
-    let rig = Arc::new(drive.scenario.rig.clone());
+    let common::TestDrive { drive, map, rig } = small_drive();
     let mut localizer = Localizer::new(rig, Arc::clone(&map), LocalizerOptions::default()).unwrap();
     let f = &drive.frames[0];
     let detections: Vec<_> = f.detections.iter().map(|d| d.detection.clone()).collect();
@@ -131,11 +122,7 @@ fn a_wrong_heading_prior_finds_no_wrong_fix() {
 /// short preset's canyon, frames 349–386, 3–10 surveyed lamps in view, not fixed).
 #[test]
 fn frames_after_an_outage_are_searched_around_the_last_place_known() {
-    let drive = small_drive();
-    let landmarks = drive.surveyed_landmarks().unwrap();
-    let map =
-        Arc::new(LandmarkMap::from_landmarks(&landmarks, Some(drive.scenario.origin)).unwrap());
-    let rig = Arc::new(drive.scenario.rig.clone());
+    let common::TestDrive { drive, map, rig } = small_drive();
     let options = LocalizerOptions {
         max_tracking_gap_s: 0.4,
         cold_start: false,
@@ -176,11 +163,7 @@ fn frames_after_an_outage_are_searched_around_the_last_place_known() {
 
 #[test]
 fn searches_around_the_last_place_known_are_at_most_one_a_second() {
-    let drive = small_drive();
-    let landmarks = drive.surveyed_landmarks().unwrap();
-    let map =
-        Arc::new(LandmarkMap::from_landmarks(&landmarks, Some(drive.scenario.origin)).unwrap());
-    let rig = Arc::new(drive.scenario.rig.clone());
+    let common::TestDrive { drive, map, rig } = small_drive();
     let options = LocalizerOptions {
         cold_start: false,
         ..LocalizerOptions::default()

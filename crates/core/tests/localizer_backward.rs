@@ -4,20 +4,13 @@
 //! backward pass starts there and tracks the drive back to its first frame.
 
 use std::sync::Arc;
-use vgps_core::localizer::{
-    Frame, GnssPosition, LandmarkMap, Localizer, LocalizerOptions, LocalizerStatus,
-};
-use vgps_sim::simulate::{Preset, Scenario, simulate};
+use vgps_core::localizer::{Frame, GnssPosition, Localizer, LocalizerOptions, LocalizerStatus};
+
+mod common;
 
 #[test]
 fn a_backward_pass_tracks_a_drive_back_from_its_last_frame() {
-    let mut scenario = Scenario::preset(Preset::Short, 7);
-    scenario.length_m = 100.0;
-    let drive = simulate(&scenario).unwrap();
-    let landmarks = drive.surveyed_landmarks().unwrap();
-    let map =
-        Arc::new(LandmarkMap::from_landmarks(&landmarks, Some(drive.scenario.origin)).unwrap());
-    let rig = Arc::new(drive.scenario.rig.clone());
+    let common::TestDrive { drive, map, rig } = common::short_drive(7, 100.0);
     let n = drive.frames.len();
     assert!(n >= 40, "{n} frames");
     let last = &drive.frames[n - 1];

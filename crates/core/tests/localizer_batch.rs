@@ -4,7 +4,8 @@
 
 use std::sync::Arc;
 use vgps_core::localizer::{Frame, LandmarkMap, Localizer, LocalizerFix, LocalizerOptions};
-use vgps_sim::simulate::{Preset, Scenario, simulate};
+
+mod common;
 
 /// A drive that gets lost and found again: a stretch with 3 detections per frame (tracking
 /// fails, searches find nothing), and a stretch whose frames show another part of the route
@@ -14,13 +15,7 @@ fn lost_and_found() -> (
     Arc<LandmarkMap>,
     Vec<Frame>,
 ) {
-    let mut scenario = Scenario::preset(Preset::Short, 11);
-    scenario.length_m = 150.0;
-    let drive = simulate(&scenario).unwrap();
-    let landmarks = drive.surveyed_landmarks().unwrap();
-    let map =
-        Arc::new(LandmarkMap::from_landmarks(&landmarks, Some(drive.scenario.origin)).unwrap());
-    let rig = Arc::new(drive.scenario.rig.clone());
+    let common::TestDrive { drive, map, rig } = common::short_drive(11, 150.0);
     let n = drive.frames.len();
     assert!(n >= 70, "{n} frames");
     let frames = drive

@@ -63,21 +63,11 @@ struct Recorder {
 impl Searches for Recorder {
     fn search(&mut self, _: &LandmarkDb, key: &SearchKey) -> Result<MatchResult, MatchError> {
         self.searches.push((self.frame, key.clone()));
-        let n = key.detections.len();
-        Ok(MatchResult {
-            status: MatchStatus::NoMatch,
-            message: String::new(),
-            estimate: None,
-            assignment: vec![None; n],
-            link_probability: vec![None; n],
-            best_score: 0,
-            runner_up_score: None,
-            runner_up_pose: None,
-            log10_false_alarms: None,
-            pose_tests: 0,
-            cells: 0,
-            hypotheses: 0,
-        })
+        Ok(MatchResult::failed(
+            MatchStatus::NoMatch,
+            key.detections.len(),
+            "planned",
+        ))
     }
 }
 

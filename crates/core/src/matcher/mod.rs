@@ -533,7 +533,7 @@ impl MatchResult {
         self
     }
 
-    fn failed(status: MatchStatus, n: usize, message: impl Into<String>) -> Self {
+    pub(crate) fn failed(status: MatchStatus, n: usize, message: impl Into<String>) -> Self {
         Self {
             status,
             message: message.into(),
