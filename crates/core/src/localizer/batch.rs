@@ -134,8 +134,15 @@ struct Board {
     queued: VecDeque<(u64, Arc<SearchKey>)>,
     /// Jobs being run.
     running: Vec<u64>,
-    /// Results not yet taken, with the thread time of their search.
-    done: HashMap<u64, (Result<MatchResult, MatchError>, Duration)>,
+    /// Results not yet taken (a search that panicked: its panic, raised again on the
+    /// localizer's thread when taken), with the thread time of their search.
+    done: HashMap<
+        u64,
+        (
+            std::thread::Result<Result<MatchResult, MatchError>>,
+            Duration,
+        ),
+    >,
     /// Searches run by the workers whose result no frame took, and their thread time.
     wasted: (u64, Duration),
     /// Thread time of every search the workers ran.
@@ -189,7 +196,10 @@ impl Shared {
                     board.running.push(job);
                     drop(board);
                     let started = Instant::now();
-                    let result = self.run(&key);
+                    // A panic (a bug) is raised again on the localizer's thread, as
+                    // `process` would, instead of leaving it waiting for this job.
+                    let result =
+                        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| self.run(&key)));
                     let took = started.elapsed();
                     board = self.lock();
                     board.running.retain(|&j| j != job);
@@ -239,7 +249,8 @@ impl Shared {
         let mut board = self.lock();
         loop {
             if let Some((result, _)) = board.done.remove(&job) {
-                return Some(result);
+                drop(board);
+                return Some(result.unwrap_or_else(|panic| std::panic::resume_unwind(panic)));
             }
             if let Some(at) = board.queued.iter().position(|(j, _)| *j == job) {
                 let (_, key) = board.queued.remove(at)?;
