@@ -357,8 +357,9 @@ impl Localizer {
     /// is `process` frame after frame. For offline replays, where the frames ahead are
     /// known; a live robot calls [`Localizer::process`].
     ///
-    /// The workers are kept for the next call; the localizer stops them when dropped (after
-    /// the searches they are running). The searches that run at once share
+    /// The workers are kept for the next call; the localizer stops them when dropped (a
+    /// search still running finishes on its worker, its result discarded, without holding
+    /// up the drop). The searches that run at once share
     /// [`MatchOptions::cache_budget_bytes`] (each gets its budget divided by `threads`);
     /// peak memory still grows with them (their other buffers).
     pub fn process_batch(
