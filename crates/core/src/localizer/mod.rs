@@ -826,29 +826,53 @@ impl Localizer {
     ) -> Result<Tracked, String> {
         let (pose, guess, predicted_covariance) = self.predict_with_covariance(state, time_s);
         let candidates = self.candidates(&pose.translation.vector, 0.0);
-        let Some(t) = track::track(
+        let refusal = |t: &track::TrackResult| {
+            tracked_fix_refusal(
+                &pose,
+                &guess,
+                &predicted_covariance,
+                t,
+                &candidates,
+                observations,
+            )
+        };
+        let first = track::track(
             &pose,
             guess,
             observations,
             &candidates,
             MIN_TRACKED_CORRESPONDENCES,
-        ) else {
-            return Err(format!(
+        );
+        let why = match first {
+            Some(t) => match refusal(&t) {
+                None => return Ok((t, candidates, FixSource::Tracking)),
+                Some(why) => format!("tracking: {why}"),
+            },
+            None => format!(
                 "tracking: fewer than {MIN_TRACKED_CORRESPONDENCES} associations among {} candidates",
                 candidates.len()
-            ));
+            ),
         };
-        match tracked_fix_refusal(
+        // The prediction may be what failed (after frames without a fix its gates hold
+        // several landmarks per observation): track again from the pose most observations
+        // agree on. The fix must pass the same tests against the prediction.
+        if let Some((rotated, narrow)) = track::pose_consensus(
             &pose,
             &guess,
-            &predicted_covariance,
-            &t,
-            &candidates,
             observations,
-        ) {
-            None => Ok((t, candidates, FixSource::Tracking)),
-            Some(why) => Err(format!("tracking: {why}")),
+            &candidates,
+            MIN_TRACKED_CORRESPONDENCES,
+        ) && let Some(t) = track::track(
+            &rotated,
+            narrow,
+            observations,
+            &candidates,
+            MIN_TRACKED_CORRESPONDENCES,
+        ) && refusal(&t).is_none()
+        {
+            return Ok((t, candidates, FixSource::Tracking));
         }
+        Err(why)
     }
 
     /// Rays and angular σ of the frame's usable observations.
