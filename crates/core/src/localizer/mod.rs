@@ -869,6 +869,7 @@ impl Localizer {
             &candidates,
             MIN_TRACKED_CORRESPONDENCES,
         ) && refusal(&t).is_none()
+            && consensus_redundant(&t, &candidates)
         {
             return Ok((t, candidates, FixSource::Tracking));
         }
@@ -1285,6 +1286,14 @@ impl Localizer {
                 .collect();
         }
     }
+}
+
+/// A fix tracked from a consensus pose (not from the prediction) must rest on three
+/// surveyed landmarks or [`MIN_SURROGATE_FIX_ASSOCIATIONS`] distinct points: the rule that
+/// admits fewer, unambiguous points leans on the prediction having chosen them.
+fn consensus_redundant(t: &track::TrackResult, candidates: &[Candidate]) -> bool {
+    let (surveyed, all) = track::distinct_associated_points(candidates, &t.assignment);
+    surveyed >= crate::fix::MIN_OBSERVATIONS || all >= MIN_SURROGATE_FIX_ASSOCIATIONS
 }
 
 /// The acceptance of a fix tracked from the motion model's prediction `predicted` (position
