@@ -331,28 +331,12 @@ pub(crate) fn assignment_fits(
     assignment: &[Option<usize>],
     max_mean_chi2: f64,
 ) -> bool {
-    let mut rays = Vec::new();
-    let mut points = Vec::new();
-    let mut sigmas = Vec::new();
-    for (o, a) in observations.iter().zip(assignment) {
-        let Some(c) = a.and_then(|ci| candidates.get(ci)) else {
-            continue;
-        };
-        let range = (c.position - pose.translation.vector).norm().max(1.0);
-        rays.push(o.ray);
-        points.push(c.position);
-        sigmas.push(effective_bearing_sigma(o.sigma_rad, c.sigma_m, range));
-    }
+    let (rays, points, sigmas) = linked_rays(pose, observations, candidates, assignment);
     if rays.len() < 4 {
         // Three associations fit some pose exactly: nothing refutes them.
         return true;
     }
-    let options = RefineOptions {
-        loss: RobustLoss::None,
-        accept_unconverged: true,
-        ..RefineOptions::default()
-    };
-    let Ok(r) = refine_pose_with_sigmas(pose, &rays, &points, &sigmas, &options) else {
+    let Ok(r) = refine_linked(pose, &rays, &points, &sigmas) else {
         return false;
     };
     let rig_from_world = r.world_from_rig.inverse();
@@ -641,27 +625,49 @@ fn refine_on_links(
     observations: &[ObsRay],
     candidates: &[Candidate],
 ) -> Option<Pose> {
+    let (rays, points, sigmas) = linked_rays(from, observations, candidates, links);
+    if rays.len() < 4 {
+        return None;
+    }
+    refine_linked(from, &rays, &points, &sigmas)
+        .ok()
+        .map(|r| r.world_from_rig)
+}
+
+/// The rays of the linked observations, their landmarks' positions and each pair's bearing
+/// σ (observation and landmark σ, the range taken from `pose`).
+fn linked_rays(
+    pose: &Pose,
+    observations: &[ObsRay],
+    candidates: &[Candidate],
+    links: &[Option<usize>],
+) -> (Vec<Ray>, Vec<Vector3<f64>>, Vec<f64>) {
     let (mut rays, mut points, mut sigmas) = (Vec::new(), Vec::new(), Vec::new());
     for (o, ci) in observations.iter().zip(links) {
         let Some(c) = ci.and_then(|ci| candidates.get(ci)) else {
             continue;
         };
-        let range = (c.position - from.translation.vector).norm().max(1.0);
+        let range = (c.position - pose.translation.vector).norm().max(1.0);
         rays.push(o.ray);
         points.push(c.position);
         sigmas.push(effective_bearing_sigma(o.sigma_rad, c.sigma_m, range));
     }
-    if rays.len() < 4 {
-        return None;
-    }
+    (rays, points, sigmas)
+}
+
+/// The pose refined from `pose` on linked rays (least squares, unconverged results kept).
+fn refine_linked(
+    pose: &Pose,
+    rays: &[Ray],
+    points: &[Vector3<f64>],
+    sigmas: &[f64],
+) -> Result<vgps_geometry::solvers::RefinedPose, vgps_geometry::solvers::RefineError> {
     let options = RefineOptions {
         loss: RobustLoss::None,
         accept_unconverged: true,
         ..RefineOptions::default()
     };
-    refine_pose_with_sigmas(from, &rays, &points, &sigmas, &options)
-        .ok()
-        .map(|r| r.world_from_rig)
+    refine_pose_with_sigmas(pose, rays, points, sigmas, &options)
 }
 
 /// Gate of the consensus score, in σ.
