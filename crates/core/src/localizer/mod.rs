@@ -856,14 +856,14 @@ impl Localizer {
         // The prediction may be what failed (after frames without a fix its gates hold
         // several landmarks per observation): track again from the pose most observations
         // agree on. The fix must pass the same tests against the prediction.
-        if let Some((rotated, narrow)) = track::pose_consensus(
+        if let Some((consensus, narrow)) = track::pose_consensus(
             &pose,
             &guess,
             observations,
             &candidates,
             MIN_TRACKED_CORRESPONDENCES,
         ) && let Some(t) = track::track(
-            &rotated,
+            &consensus,
             narrow,
             observations,
             &candidates,
@@ -1288,11 +1288,17 @@ impl Localizer {
     }
 }
 
-/// A fix tracked from a consensus pose (not from the prediction) must rest on three
-/// surveyed landmarks or [`MIN_SURROGATE_FIX_ASSOCIATIONS`] distinct points: the rule that
-/// admits fewer, unambiguous points leans on the prediction having chosen them.
+/// A fix tracked from a consensus pose (not from the prediction) must be
+/// [`redundant_on_its_own`]: the rule that admits fewer, unambiguous points leans on the
+/// prediction having chosen them.
 fn consensus_redundant(t: &track::TrackResult, candidates: &[Candidate]) -> bool {
     let (surveyed, all) = track::distinct_associated_points(candidates, &t.assignment);
+    redundant_on_its_own(surveyed, all)
+}
+
+/// Three surveyed landmarks or [`MIN_SURROGATE_FIX_ASSOCIATIONS`] distinct points: a fix
+/// redundant enough without the unambiguity rule or the prediction's confirmation.
+fn redundant_on_its_own(surveyed: usize, all: usize) -> bool {
     surveyed >= crate::fix::MIN_OBSERVATIONS || all >= MIN_SURROGATE_FIX_ASSOCIATIONS
 }
 
@@ -1348,7 +1354,7 @@ fn tracked_fix_refusal(
     // A fix on a handful of surrogates, admitted only because its associations are
     // unambiguous at the fix, must also agree with the prediction axis by axis: see
     // `confirmed_by_prediction`.
-    if surveyed < crate::fix::MIN_OBSERVATIONS && all < MIN_SURROGATE_FIX_ASSOCIATIONS {
+    if !redundant_on_its_own(surveyed, all) {
         return confirmed_by_prediction(
             predicted,
             guess,
@@ -1511,8 +1517,7 @@ fn redundant_enough(
     if all < MIN_TRACKED_CORRESPONDENCES {
         return false;
     }
-    surveyed >= crate::fix::MIN_OBSERVATIONS
-        || all >= MIN_SURROGATE_FIX_ASSOCIATIONS
+    redundant_on_its_own(surveyed, all)
         || (all >= MIN_UNAMBIGUOUS_SURROGATE_FIX_ASSOCIATIONS
             && associations_unambiguous(t, candidates, observations))
 }

@@ -489,9 +489,7 @@ pub(crate) fn pose_consensus(
         .iter()
         .map(|c| (rig_from_world * nalgebra::Point3::from(c.position)).coords)
         .collect();
-    // Gated pairs: (observation, candidate, range from the predicted rig, the pair's σ
-    // without the guess's terms).
-    let mut pairs: Vec<(usize, usize, f64, f64)> = Vec::new();
+    let mut pairs: Vec<GatedPair> = Vec::new();
     for (ci, c) in candidates.iter().enumerate() {
         let gate = GateTerms::new(guess, c, ASSOCIATION_GATE_SIGMAS);
         let range = in_rig[ci].norm();
@@ -501,7 +499,12 @@ pub(crate) fn pose_consensus(
         for (oi, o) in observations.iter().enumerate() {
             if pair_z(o, c, &in_rig[ci], guess, &gate).is_some() {
                 let own = (o.sigma_rad * o.sigma_rad + (c.sigma_m / range).powi(2)).sqrt();
-                pairs.push((oi, ci, range, own));
+                pairs.push(GatedPair {
+                    obs: oi,
+                    cand: ci,
+                    range,
+                    own,
+                });
             }
         }
     }
@@ -509,18 +512,18 @@ pub(crate) fn pose_consensus(
     // between the landmarks seen from within the guess's position gate: that angle moves by
     // at most |Δx| (1/ρ₁ + 1/ρ₂).
     let reach = ASSOCIATION_GATE_SIGMAS * guess.position_m;
-    let compatible = |a: &(usize, usize, f64, f64), b: &(usize, usize, f64, f64)| -> bool {
-        if a.0 == b.0 || a.1 == b.1 {
+    let compatible = |a: &GatedPair, b: &GatedPair| -> bool {
+        if a.obs == b.obs || a.cand == b.cand {
             return false;
         }
         let seen = vgps_geometry::geometry::angle_between(
-            &observations[a.0].ray.direction,
-            &observations[b.0].ray.direction,
+            &observations[a.obs].ray.direction,
+            &observations[b.obs].ray.direction,
         );
-        let expected = vgps_geometry::geometry::angle_between(&in_rig[a.1], &in_rig[b.1]);
-        let slack = ASSOCIATION_GATE_SIGMAS * (a.3 + b.3)
+        let expected = vgps_geometry::geometry::angle_between(&in_rig[a.cand], &in_rig[b.cand]);
+        let slack = ASSOCIATION_GATE_SIGMAS * (a.own + b.own)
             + (reach + CONSENSUS_POSITION_SLACK_M)
-                * (1.0 / (a.2 - reach).max(1.0) + 1.0 / (b.2 - reach).max(1.0));
+                * (1.0 / (a.range - reach).max(1.0) + 1.0 / (b.range - reach).max(1.0));
         (seen - expected).abs() <= slack
     };
     let max_turn = ASSOCIATION_GATE_SIGMAS * guess.rotation_rad;
@@ -540,8 +543,8 @@ pub(crate) fn pose_consensus(
                 }
                 solves += 1;
                 let three = [pairs[i], pairs[j], pairs[k]];
-                let bearings = three.map(|p| observations[p.0].ray.direction);
-                let points = three.map(|p| candidates[p.1].position);
+                let bearings = three.map(|p| observations[p.obs].ray.direction);
+                let points = three.map(|p| candidates[p.cand].position);
                 for solution in vgps_geometry::solvers::p3p(&bearings, &points).iter() {
                     let moved = (solution.translation.vector - pose.translation.vector).norm();
                     let turned = nalgebra::UnitQuaternion::from_rotation_matrix(
@@ -670,6 +673,19 @@ fn refine_linked(
     refine_pose_with_sigmas(pose, rays, points, sigmas, &options)
 }
 
+/// An (observation, candidate) pair within the prediction's association gate.
+#[derive(Clone, Copy, Debug)]
+struct GatedPair {
+    /// Index of the observation.
+    obs: usize,
+    /// Index of the candidate.
+    cand: usize,
+    /// The candidate's range from the predicted rig origin, metres.
+    range: f64,
+    /// The pair's angular σ without the guess's terms (observation and landmark), radians.
+    own: f64,
+}
+
 /// Gate of the consensus score, in σ.
 pub const CONSENSUS_SIGMAS: f64 = 5.0;
 /// The position error a P3P pose of three noisy bearings may have, metres: added to the
@@ -695,12 +711,18 @@ fn consensus_count(
     pose: &Pose,
     observations: &[ObsRay],
     candidates: &[Candidate],
-    pairs: &[(usize, usize, f64, f64)],
+    pairs: &[GatedPair],
     slack_m: f64,
 ) -> (usize, f64, Vec<Option<usize>>) {
     let rig_from_world = pose.inverse();
     let mut within: Vec<(f64, usize, usize)> = Vec::new();
-    for &(oi, ci, _, own) in pairs {
+    for &GatedPair {
+        obs: oi,
+        cand: ci,
+        own,
+        ..
+    } in pairs
+    {
         let o = &observations[oi];
         let v = (rig_from_world * nalgebra::Point3::from(candidates[ci].position)).coords
             - o.ray.origin;
