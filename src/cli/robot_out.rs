@@ -20,6 +20,10 @@ pub struct RobotOutputArgs {
     /// soon as it is localized.
     #[arg(long, value_enum, default_value = "real")]
     pub pace: PaceArg,
+    /// Before the first frame, wait up to this many seconds for a client of the live
+    /// stream (gpsd started after vgps then gets every fix); 0 does not wait.
+    #[arg(long, value_name = "S", default_value_t = 0.0, value_parser = super::args::parse_non_negative, requires = "nmea_tcp")]
+    pub nmea_wait_client: f64,
     /// Also write the fixes as ROS 2 messages (NavSatFix, PoseWithCovarianceStamped, Imu)
     /// into this MCAP file; see docs/ros2.md.
     #[arg(long, value_name = "FILE")]
@@ -48,6 +52,9 @@ impl LiveStream {
                         s.local_addr(),
                         s.local_addr()
                     );
+                    if args.nmea_wait_client > 0.0 {
+                        wait_for_a_client(&s, args.nmea_wait_client, err);
+                    }
                     Some(s)
                 }
                 Err(e) => {
@@ -100,6 +107,24 @@ impl LiveStream {
                 server.clients_ever()
             );
         }
+    }
+}
+
+/// Waits up to `seconds` for the stream's first client, saying so; the replay goes on
+/// either way.
+fn wait_for_a_client(server: &NmeaTcpServer, seconds: f64, err: &mut dyn Write) {
+    let _ = writeln!(
+        err,
+        "vgps: nmea-tcp: waiting up to {seconds} s for a client before the first frame"
+    );
+    // Bounded so that a huge value cannot overflow a Duration: a day is longer than any wait.
+    let timeout = std::time::Duration::from_secs_f64(seconds.min(86_400.0));
+    if !server.wait_for_clients(1, timeout) {
+        let _ = writeln!(
+            err,
+            "vgps: warning: --nmea-tcp {}: no client after {seconds} s; the replay goes on",
+            server.local_addr()
+        );
     }
 }
 
