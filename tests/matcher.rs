@@ -425,6 +425,55 @@ fn monte_carlo_cold_frame(seed: u64, index: usize) -> (LandmarkDb, Trial) {
 }
 
 /// The options of the Monte-Carlo experiment with a known vertical (`UP_TOL_DEG=4`).
+/// A rig tilted 5.3° (beyond a stated 4° vertical, within P3P's 2° margin of it) is not
+/// fixed under that vertical: the refined pose contradicts it, so it may only be a
+/// runner-up. Stated 6.5°, the same frames are fixed right.
+#[test]
+fn a_pose_tilted_beyond_the_stated_vertical_is_not_a_fix() {
+    let mut g = rng(31);
+    let world = CityWorld::generate(&mut g, &CityConfig::default());
+    let db = world.landmark_db().unwrap();
+    let config = FrameConfig::default();
+    let (mut refused, mut right) = (0, 0);
+    let frames = 10;
+    for k in 0..frames {
+        let level = world.random_rig_pose(&mut g);
+        let heading = (level.rotation * Vector3::x())
+            .y
+            .atan2((level.rotation * Vector3::x()).x);
+        // Rolled about its own forward axis after its heading: a tilt of exactly 5.3°.
+        let rotation = nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), heading)
+            * nalgebra::UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 5.3f64.to_radians());
+        let pose = Pose::from_parts(level.translation, rotation.into());
+        let frame = world.frame(&mut g, &pose, &config);
+        let detections: Vec<Detection> = central_detections(&frame.detections);
+        let area = SearchArea::around(&pose.translation.vector, 30.0, 1.0).unwrap();
+        let stated = |deg: f64| MatchOptions {
+            up_in_rig: Some((Vector3::z(), deg.to_radians())),
+            ..up4_options()
+        };
+        let r4 = match_detections(&db, &detections, &area, &stated(4.0)).unwrap();
+        assert_ne!(
+            r4.status,
+            MatchStatus::Ok,
+            "frame {k}: a fix under a 4° vertical"
+        );
+        refused += 1;
+        let r6 = match_detections(&db, &detections, &area, &stated(6.5)).unwrap();
+        if r6.status == MatchStatus::Ok {
+            let e = r6.estimate.unwrap();
+            let error = (e.world_from_rig.translation.vector - pose.translation.vector).norm();
+            assert!(error < 0.5, "frame {k}: wrong fix under 6.5°: {error} m");
+            right += 1;
+        }
+    }
+    assert_eq!(refused, frames);
+    assert!(
+        right >= 8,
+        "{right} of {frames} fixed under a 6.5° vertical"
+    );
+}
+
 fn up4_options() -> MatchOptions {
     MatchOptions {
         sigma_rad: FrameConfig::default().sigma_rad,

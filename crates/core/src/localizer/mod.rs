@@ -87,7 +87,9 @@ pub use map::LandmarkMap;
 use crate::mapping::{
     LandmarkMapper, MappedLandmark, MapperOptions, MappingFrame, NearbySurrogate, RigObservation,
 };
-use crate::matcher::{Detection, MatchEstimate, MatchOptions, MatchStatus, SearchArea};
+use crate::matcher::{
+    Detection, MatchEstimate, MatchOptions, MatchStatus, SearchArea, keeps_vertical,
+};
 use crate::measurement::effective_bearing_variance;
 use drift::SurrogateDrift;
 use nalgebra::{Matrix3, Matrix6, Rotation3, UnitQuaternion, Vector3};
@@ -1158,16 +1160,18 @@ impl Localizer {
             _ => return Err((LocalizerStatus::NoFix, result.message)),
         };
         let estimate = estimate.ok_or((LocalizerStatus::NoFix, "matcher gave no pose".into()))?;
-        self.track_matched(&estimate, observations)
+        self.track_matched(&estimate, observations, options.up_in_rig)
             .map(|(t, candidates)| (t, candidates, source))
     }
 
     /// The matcher's pose tracked: associated with every candidate near it and refined, or
-    /// refused when it does not track, fits badly or is not redundant enough.
+    /// refused when it does not track, fits badly, is not redundant enough or is tilted
+    /// beyond the vertical `up` the search assumed (`up_in_rig` and its tolerance).
     fn track_matched(
         &mut self,
         estimate: &MatchEstimate,
         observations: &[ObsRay],
+        up: Option<(Vector3<f64>, f64)>,
     ) -> Result<(track::TrackResult, Vec<Candidate>), Refusal> {
         let position = estimate.world_from_rig.translation.vector;
         let candidates = self.candidates(&position, 0.0);
@@ -1195,6 +1199,22 @@ impl Localizer {
             LocalizerStatus::NoFix,
             "the matcher's pose did not track".to_string(),
         ))?;
+        if let Some((u, tolerance)) = up
+            && !keeps_vertical(&t.world_from_rig, &t.covariance, &u, tolerance)
+        {
+            let tilt = (t.world_from_rig.rotation * u.normalize())
+                .z
+                .clamp(-1.0, 1.0)
+                .acos();
+            return Err((
+                LocalizerStatus::NoFix,
+                format!(
+                    "the matcher's pose tracks tilted {:.2}° from the vertical, beyond the {:.2}° assumed",
+                    tilt.to_degrees(),
+                    tolerance.to_degrees()
+                ),
+            ));
+        }
         Ok((t, candidates))
     }
 

@@ -121,8 +121,9 @@ pub(super) fn conclude(search: &mut Search, cells: usize) -> MatchResult {
 }
 
 /// Refines each start pose once (skipping one already refined to the same pose): the
-/// refined poses inside the area, and the runner-ups only, those that do not refine (scored
-/// as they are) and those outside the area.
+/// refined poses inside the area that keep the known vertical, and the runner-ups only,
+/// those that do not refine (scored as they are), those outside the area and those tilted
+/// beyond the vertical ([`Search::within_vertical`]).
 fn refine_starts(search: &mut Search, starts: &[Pose]) -> (Vec<RefinedHypothesis>, Vec<Scored>) {
     let n = search.detections.len();
     let mut refined: Vec<RefinedHypothesis> = Vec::new();
@@ -133,7 +134,10 @@ fn refine_starts(search: &mut Search, starts: &[Pose]) -> (Vec<RefinedHypothesis
             continue;
         }
         let (pose, scored) = match search.refine_once(start) {
-            Some(r) if search.within_area(&r.pose) => {
+            Some(r)
+                if search.within_area(&r.pose)
+                    && search.within_vertical(&r.pose, &r.covariance) =>
+            {
                 refined.push(r);
                 continue;
             }
@@ -144,9 +148,10 @@ fn refine_starts(search: &mut Search, starts: &[Pose]) -> (Vec<RefinedHypothesis
                 (*start, (inliers, cost + (n - inliers) as f64))
             }
         };
-        // A pose outside the area (the prior), e.g. one that refinement moved away, cannot
-        // be the fix, but it still counts as a runner-up: if the prior is off, it may be the
-        // truth, and a look-alike inside the area must not then pass for a fix.
+        // A pose outside the area (the prior), e.g. one that refinement moved away, or
+        // tilted beyond the known vertical, cannot be the fix, but it still counts as a
+        // runner-up: if the prior or the vertical is off, it may be the truth, and a
+        // look-alike inside the area must not then pass for a fix.
         unrefined.push((scored.0, scored.1, pose));
     }
     (refined, unrefined)

@@ -172,6 +172,37 @@ pub const DEFAULT_MAX_HYPOTHESES: usize = 2_000_000;
 /// accurate than the bearings; radians, 2°).
 pub const UP_CHECK_MARGIN_RAD: f64 = 0.034_906_585_039_886_59;
 
+/// With a known vertical, a refined pose tilted beyond the tolerance by more than this many
+/// standard deviations of its own tilt is not a fix: it contradicts the vertical the search
+/// assumed. It still counts as a runner-up (if the vertical given is wrong, it may be the
+/// truth). The P3P check's wider margin ([`UP_CHECK_MARGIN_RAD`]) is for unrefined poses.
+pub const VERTICAL_CHECK_SIGMAS: f64 = 3.0;
+
+/// Whether a refined pose keeps a known vertical: its tilt (the angle of the rig's up
+/// `up_in_rig`, seen in the world, from the world's up) is at most `tolerance` plus
+/// [`VERTICAL_CHECK_SIGMAS`] standard deviations of the tilt from `covariance` (of
+/// `[δp (m), δθ (rad)]`, world frame).
+pub fn keeps_vertical(
+    pose: &Pose,
+    covariance: &Matrix6<f64>,
+    up_in_rig: &Vector3<f64>,
+    tolerance: f64,
+) -> bool {
+    let up = pose.rotation * up_in_rig.normalize();
+    let tilt = up.z.clamp(-1.0, 1.0).acos();
+    if tilt <= tolerance {
+        return true;
+    }
+    // The tilt grows along the horizontal direction the rig's up leans to; a rotation δθ
+    // moves the up by δθ × up, so the tilt by δθ · (up × lean).
+    let Some(lean) = vgps_geometry::geometry::try_unit(&Vector3::new(up.x, up.y, 0.0)) else {
+        return true;
+    };
+    let axis = up.cross(&lean);
+    let variance = (axis.transpose() * covariance.fixed_view::<3, 3>(3, 3) * axis)[(0, 0)];
+    tilt <= tolerance + VERTICAL_CHECK_SIGMAS * variance.max(0.0).sqrt()
+}
+
 /// Default number of other detections that must verify a P3P pose before it is scored.
 pub const DEFAULT_MIN_EXTENSIONS: usize = 1;
 
@@ -591,4 +622,52 @@ pub fn match_detections(
     options: &MatchOptions,
 ) -> Result<MatchResult, MatchError> {
     search::run(db, detections, area, options)
+}
+
+#[cfg(test)]
+mod vertical_tests {
+    use super::*;
+    use nalgebra::{Translation3, UnitQuaternion};
+
+    /// A rig rolled `deg` about the world's x axis (its up leans towards −y).
+    fn rolled(deg: f64) -> Pose {
+        Pose::from_parts(
+            Translation3::new(1.0, 2.0, 3.0),
+            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), deg.to_radians()).into(),
+        )
+    }
+
+    /// A covariance whose rotation block is `σ²` (rad²) about the world's x, y and z axes.
+    fn rotation_sigmas(x: f64, y: f64, z: f64) -> Matrix6<f64> {
+        let mut c = Matrix6::identity() * 1e-4;
+        c[(3, 3)] = x * x;
+        c[(4, 4)] = y * y;
+        c[(5, 5)] = z * z;
+        c
+    }
+
+    #[test]
+    fn the_tilt_is_compared_with_the_tolerance_and_its_own_sigma() {
+        let tol = 5f64.to_radians();
+        let tight = rotation_sigmas(1e-4, 1e-4, 1e-4);
+        assert!(keeps_vertical(&rolled(4.9), &tight, &Vector3::z(), tol));
+        assert!(keeps_vertical(&rolled(-4.9), &tight, &Vector3::z(), tol));
+        assert!(!keeps_vertical(&rolled(5.2), &tight, &Vector3::z(), tol));
+        // σ 0.1° about the axis that tilts (x): 5.2° is within 5° + 3σ, 5.4° is not.
+        let x = rotation_sigmas(0.1f64.to_radians(), 1e-4, 1e-4);
+        assert!(keeps_vertical(&rolled(5.2), &x, &Vector3::z(), tol));
+        assert!(!keeps_vertical(&rolled(5.4), &x, &Vector3::z(), tol));
+        // A large σ about the axes that do not change this tilt (y, the heading) is no
+        // allowance.
+        let other = rotation_sigmas(1e-4, 0.1, 0.1);
+        assert!(!keeps_vertical(&rolled(5.2), &other, &Vector3::z(), tol));
+        // The rig's up need not be its z axis, nor of unit length.
+        let up = Vector3::new(0.0, 2.0, 0.0);
+        let y_up = Pose::from_parts(
+            Translation3::identity(),
+            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), (90f64 - 4.0).to_radians()).into(),
+        );
+        assert!(keeps_vertical(&y_up, &tight, &up, tol));
+        assert!(!keeps_vertical(&y_up, &tight, &up, 3f64.to_radians()));
+    }
 }

@@ -13,8 +13,9 @@ use super::{
     CORE_GROWTH, DUPLICATE_ANGLE_RAD, Detection, HYPOTHESIS_THRESHOLD_FACTOR, LandmarkDb,
     MAX_CONFIRMATION_TRIPLES, MIN_TRIPLE_ANGLE_RAD, MatchError, MatchOptions, MatchResult,
     MatchStatus, STOP_CONFIRMATIONS, STOP_MIN_INLIER_FRACTION, SearchArea, UP_CHECK_MARGIN_RAD,
+    keeps_vertical,
 };
-use nalgebra::Vector3;
+use nalgebra::{Matrix6, Vector3};
 use rand::SeedableRng;
 use vgps_geometry::geometry::{Pose, PoseSolutions, angle_between, try_unit};
 use vgps_geometry::solvers::p3p::{P3pBearings, p3p_prepared_into};
@@ -1042,6 +1043,13 @@ impl Search<'_> {
     /// the prior: a hypothesis outside it, e.g. one that refinement moved away, is not a fix.
     pub(super) fn within_area(&self, pose: &Pose) -> bool {
         self.widened_area.contains(&pose.translation.vector)
+    }
+
+    /// Whether a refined pose keeps the known vertical ([`keeps_vertical`]); always true
+    /// without one.
+    pub(super) fn within_vertical(&self, pose: &Pose, covariance: &Matrix6<f64>) -> bool {
+        self.up
+            .is_none_or(|(u, tolerance)| keeps_vertical(pose, covariance, &u, tolerance))
     }
 }
 
