@@ -203,6 +203,17 @@ pub const PRIOR_VERTICAL_HALF_RANGE_M: f64 = 3.0;
 /// ellipse's radius in σ) and takes the day drive's backward fixes on surrogates alone
 /// from 73 % to 99 % inside their 95 % ellipse.
 pub const DEFAULT_SURROGATE_DRIFT_PER_M: f64 = 0.001;
+/// Drift per metre carried of a fix that uses a lamp seen ahead
+/// ([`LocalizerOptions::surrogates_seen_ahead`]; 1σ per axis): such lamps are placed from
+/// a short stretch of rays, so a map carried on them drifts faster.
+pub const SEEN_AHEAD_DRIFT_PER_M: f64 = 0.003;
+/// The longest interval between surrogate refreshes (seconds) over which the travel to the
+/// next refresh is estimated for lamps seen ahead (a longer gap is not travel at one speed).
+pub const MAX_SEEN_AHEAD_INTERVAL_S: f64 = 1.0;
+/// The shortest time ahead (seconds) over which a lamp seen ahead must stay placed well
+/// enough: its range error counts as seen after the rig has moved this long at its speed,
+/// whatever the frame rate (three frames at 5 frames/s).
+pub const MIN_SEEN_AHEAD_HORIZON_S: f64 = 0.6;
 
 /// Options of a [`Localizer`]; `Default` gives the documented constants.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -248,6 +259,13 @@ pub struct LocalizerOptions {
     /// covariance"). Only the reported covariance: gates, the motion model and the mapper
     /// are unchanged.
     pub surrogate_drift_per_m: f64,
+    /// Lamps seen ahead: when a fix would rest on fewer than three surveyed landmarks and
+    /// fewer than [`MIN_SURROGATE_FIX_ASSOCIATIONS`] other points, mapped tracks that the
+    /// surrogate criteria still refuse (too few rays or too little parallax to be placed
+    /// in every direction) but that are placed well enough *as seen from the rig* become
+    /// candidates until the next refresh (docs/localizer.md, "Lamps seen ahead"). A fix
+    /// that uses one carries its drift at [`SEEN_AHEAD_DRIFT_PER_M`] at least.
+    pub surrogates_seen_ahead: bool,
 }
 
 impl Default for LocalizerOptions {
@@ -270,6 +288,7 @@ impl Default for LocalizerOptions {
             },
             level_tolerance_rad: Some(DEFAULT_LEVEL_TOLERANCE_RAD),
             surrogate_drift_per_m: DEFAULT_SURROGATE_DRIFT_PER_M,
+            surrogates_seen_ahead: true,
         }
     }
 }
@@ -529,6 +548,11 @@ pub struct Localizer {
     /// Per surrogate, its candidate without position check (computed once per refresh).
     surrogate_candidates: Vec<Candidate>,
     frames_since_refresh: usize,
+    /// Ids of the mapped tracks that are candidates as lamps seen ahead
+    /// ([`LocalizerOptions::surrogates_seen_ahead`]) until the next refresh.
+    seen_ahead: std::collections::HashSet<u64>,
+    /// Time of the last surrogate refresh (seconds).
+    last_refresh_s: Option<f64>,
     last_cold_start_s: Option<f64>,
     /// The last place known: `(time, position, radius)` of the last fix (3σ) or satellite
     /// GPS position (its prior radius), whichever is later: the prior of a search that
@@ -601,6 +625,8 @@ impl Localizer {
             surrogates: Vec::new(),
             surrogate_candidates: Vec::new(),
             frames_since_refresh: 0,
+            seen_ahead: std::collections::HashSet::new(),
+            last_refresh_s: None,
             last_cold_start_s: None,
             last_known: None,
             last_known_search_s: None,
@@ -753,11 +779,19 @@ impl Localizer {
         // The drift of a map carried on surrogates: reported only (see `drift`).
         let carried_m = self.drift.record(&position, n_surveyed, surrogate_share);
         let mut block = reported.covariance.fixed_view_mut::<3, 3>(0, 0);
-        block += SurrogateDrift::covariance(
-            carried_m,
-            surrogate_share,
-            self.options.surrogate_drift_per_m,
-        );
+        let uses_seen_ahead = t
+            .assignment
+            .iter()
+            .flatten()
+            .any(|&ci| is_seen_ahead(&candidates[ci], &self.seen_ahead));
+        let drift_per_m = if uses_seen_ahead {
+            self.options
+                .surrogate_drift_per_m
+                .max(SEEN_AHEAD_DRIFT_PER_M)
+        } else {
+            self.options.surrogate_drift_per_m
+        };
+        block += SurrogateDrift::covariance(carried_m, surrogate_share, drift_per_m);
         let Ok(geodetic) = self.map.frame().try_to_geodetic(&position) else {
             fix.message = "the fix is outside the supported heights".into();
             return fix;
@@ -1304,8 +1338,53 @@ impl Localizer {
                     }
                 })
                 .collect();
+            // Lamps seen ahead: when the fix just made would stand on too little without
+            // them, the tracks the criteria still refuse but that are well placed *as seen
+            // from here* join the candidates until the next refresh.
+            let short = self.options.surrogates_seen_ahead && {
+                let seen_ahead = &self.seen_ahead;
+                let ordinary: Vec<Option<usize>> = t
+                    .assignment
+                    .iter()
+                    .map(|a| a.filter(|&ci| !is_seen_ahead(&candidates[ci], seen_ahead)))
+                    .collect();
+                let (surveyed, all) = track::distinct_associated_points(candidates, &ordinary);
+                !redundant_on_its_own(surveyed, all)
+            };
+            self.seen_ahead.clear();
+            let since = self.last_refresh_s.map_or(0.0, |t0| (time_s - t0).abs());
+            self.last_refresh_s = Some(time_s);
+            if short {
+                // How far the rig goes before the next refresh: as far as since the last.
+                let speed = self.state.map_or(0.0, |s| s.velocity.norm());
+                let horizon = since.clamp(MIN_SEEN_AHEAD_HORIZON_S, MAX_SEEN_AHEAD_INTERVAL_S);
+                let travel = (speed * horizon).min(SURROGATE_MARGIN_M);
+                let seen = self.mapper.surrogates_seen_from(
+                    &t.world_from_rig.translation.vector,
+                    radius,
+                    travel,
+                );
+                for s in seen {
+                    let l = &s.surrogate.landmark;
+                    self.seen_ahead.insert(l.id);
+                    self.surrogate_candidates.push(Candidate {
+                        position: l.position_enu,
+                        sigma_m: s.seen_sigma_m,
+                        class: l.class,
+                        source: CandidateSource::Surrogate(l.id),
+                        common_covariance: Some(
+                            s.seen_covariance + s.surrogate.pose_floor_covariance,
+                        ),
+                    });
+                }
+            }
         }
     }
+}
+
+/// Whether a candidate is a lamp seen ahead (a mapped track promoted at the last refresh).
+fn is_seen_ahead(c: &Candidate, seen_ahead: &std::collections::HashSet<u64>) -> bool {
+    matches!(c.source, CandidateSource::Surrogate(id) if seen_ahead.contains(&id))
 }
 
 /// A fix tracked from a consensus pose (not from the prediction) must be

@@ -622,6 +622,81 @@ impl LandmarkMapper {
             .collect()
     }
 
+    /// Lamps seen ahead: tracks within `radius_m` of `position_in_world` that the surrogate
+    /// criteria refuse but that are placed well enough *as seen from there* — with the
+    /// criteria's rays, [`MapperOptions::min_init_parallax_rad`], consistent rays, and an
+    /// error across the line of sight plus along it times `min(1, travel_m / range)`
+    /// ([`seen_covariance`]) whose worst σ is within the criteria's σ cap. From a rig that
+    /// moves `travel_m` before it looks again, an error along the line of sight turns the
+    /// direction to the lamp by at most that share of it.
+    pub fn surrogates_seen_from(
+        &mut self,
+        position_in_world: &Vector3<f64>,
+        radius_m: f64,
+        travel_m: f64,
+    ) -> Vec<SeenAhead> {
+        let c = self.options.surrogate;
+        let min_rays = c.min_rays.max(self.options.min_landmark_rays);
+        let min_parallax = self.options.min_init_parallax_rad;
+        self.tracks
+            .iter_mut()
+            .filter(|t| t.rays.len() >= min_rays)
+            .filter_map(|t| {
+                let running = t.estimate.as_ref()?;
+                if (running.point - position_in_world).norm() > radius_m {
+                    return None;
+                }
+                let u0 = t.rays.first()?.ray.direction;
+                let parallax = u0.cross(&t.far.1).norm().atan2(u0.dot(&t.far.1));
+                if parallax.is_nan() || parallax < min_parallax {
+                    return None;
+                }
+                let n_rays = t.rays.len();
+                let e = match &t.refined {
+                    Some((n, e)) if *n == n_rays => (*e)?,
+                    _ => {
+                        let e = refine_landmark(&t.rays)
+                            .ok()
+                            .filter(|e| rays_consistent(&t.rays, &e.point));
+                        t.refined = Some((n_rays, e));
+                        e?
+                    }
+                };
+                let landmark = MappedLandmark {
+                    id: t.id,
+                    position_enu: e.point,
+                    covariance: e.covariance,
+                    n_obs: n_rays,
+                    max_parallax_rad: e.max_parallax_rad(),
+                    class: t.class,
+                };
+                if c.accepts(&landmark) {
+                    // A surrogate already ([`Self::surrogates_near`]).
+                    return None;
+                }
+                let seen_covariance =
+                    seen_covariance(&e.covariance, &(e.point - position_in_world), travel_m);
+                let seen_sigma_m = seen_covariance
+                    .symmetric_eigenvalues()
+                    .max()
+                    .max(0.0)
+                    .sqrt();
+                if seen_sigma_m.is_nan() || seen_sigma_m > c.max_sigma_m {
+                    return None;
+                }
+                let pose_floor_covariance = t.floor_sum / n_rays as f64;
+                Some(SeenAhead {
+                    surrogate: NearbySurrogate {
+                        landmark,
+                        pose_floor_covariance,
+                    },
+                    seen_sigma_m,
+                    seen_covariance,
+                })
+            })
+            .collect()
+    }
+
     /// The sources `(frame number, observation index)` of every reported landmark's rays,
     /// keyed by landmark id.
     pub fn associations(&self) -> Vec<(u64, Vec<(usize, usize)>)> {
@@ -666,6 +741,18 @@ pub struct NearbySurrogate {
     /// correlated — as they are along a stretch fixed from surrogates alone, where every
     /// pose inherits the same drift. Add it to `landmark.covariance` for an honest bound.
     pub pose_floor_covariance: Matrix3<f64>,
+}
+
+/// A lamp seen ahead ([`LandmarkMapper::surrogates_seen_from`]): a track the surrogate
+/// criteria refuse, with its covariance as seen from the rig.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SeenAhead {
+    /// The track's landmark and pose floor, as for a surrogate.
+    pub surrogate: NearbySurrogate,
+    /// Worst σ of [`Self::seen_covariance`] (metres).
+    pub seen_sigma_m: f64,
+    /// The landmark's covariance as seen from the rig ([`seen_covariance`], m²).
+    pub seen_covariance: Matrix3<f64>,
 }
 
 /// The square roots of the traces of a ray's pose position and attitude covariances, for
@@ -1306,5 +1393,63 @@ mod cone_tests {
                 }
             }
         }
+    }
+}
+
+/// The covariance `c` of a point as seen from `v` before it (`v` = point − rig) by a rig
+/// that moves `travel_m` before it looks again: across the line of sight whole, along it
+/// times `sin² δ`, `sin δ = min(1, travel / |v|)`: `P C P + sin²δ (uᵀCu) uuᵀ`, `u = v/|v|`,
+/// `P = I − uuᵀ`. `c` itself for `v = 0`.
+pub fn seen_covariance(
+    c: &nalgebra::Matrix3<f64>,
+    v: &Vector3<f64>,
+    travel_m: f64,
+) -> nalgebra::Matrix3<f64> {
+    let range = v.norm();
+    if range.is_nan() || range <= 0.0 {
+        return *c;
+    }
+    let u = v / range;
+    let p = nalgebra::Matrix3::identity() - u * u.transpose();
+    let along = u.dot(&(c * u)).max(0.0);
+    let sin = (travel_m / range).min(1.0);
+    p * c * p + u * u.transpose() * (along * sin * sin)
+}
+
+#[cfg(test)]
+mod seen_tests {
+    use super::*;
+
+    /// A point 40 m ahead (x), σ 2 m along the line of sight and 0.1 m across it.
+    fn elongated() -> (Matrix3<f64>, Vector3<f64>) {
+        (
+            Matrix3::from_diagonal(&Vector3::new(4.0, 0.01, 0.01)),
+            Vector3::new(40.0, 0.0, 0.0),
+        )
+    }
+
+    #[test]
+    fn the_seen_covariance_keeps_the_error_across_and_scales_the_error_along() {
+        let (c, v) = elongated();
+        // Not moving: only the error across the line of sight turns the direction.
+        let still = seen_covariance(&c, &v, 0.0);
+        assert!((still - Matrix3::from_diagonal(&Vector3::new(0.0, 0.01, 0.01))).norm() < 1e-12);
+        // Moving 4 m (sin δ = 0.1): the error along counts for 0.1 of its σ.
+        let moved = seen_covariance(&c, &v, 4.0);
+        assert!((moved[(0, 0)] - 4.0 * 0.01).abs() < 1e-12);
+        assert!((moved[(1, 1)] - 0.01).abs() < 1e-12);
+        // Moving as far as the range or more: the whole covariance.
+        assert!((seen_covariance(&c, &v, 40.0) - c).norm() < 1e-12);
+        assert!((seen_covariance(&c, &v, 400.0) - c).norm() < 1e-12);
+        // From the point itself: the whole covariance.
+        assert_eq!(seen_covariance(&c, &Vector3::zeros(), 1.0), c);
+        // Seen from the side (y), the 2 m error is across the line of sight: whole.
+        let side = seen_covariance(&c, &Vector3::new(0.0, 40.0, 0.0), 0.0);
+        assert!((side[(0, 0)] - 4.0).abs() < 1e-12);
+        assert!(side[(1, 1)].abs() < 1e-12);
+        // Symmetric positive semi-definite whatever the direction.
+        let oblique = seen_covariance(&c, &Vector3::new(30.0, 20.0, 5.0), 3.0);
+        assert!((oblique - oblique.transpose()).norm() < 1e-12);
+        assert!(oblique.symmetric_eigenvalues().min() > -1e-12);
     }
 }

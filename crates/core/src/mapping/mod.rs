@@ -54,6 +54,7 @@ pub use frame::{MappingFrame, RigObservation};
 pub(crate) use mapper::{CONE_ABSOLUTE_MARGIN, CONE_MIN_COS, CONE_RELATIVE_MARGIN, max_or_nan};
 pub use mapper::{
     LandmarkMapper, MAX_PAIRWISE_RAYS, MAX_SURROGATE_MEAN_CHI2, MapperOptions, NearbySurrogate,
+    SeenAhead, seen_covariance,
 };
 pub use refine::{MapRay, ray_chi2, ray_residual_covariance, refine_landmark};
 pub use survey::{
