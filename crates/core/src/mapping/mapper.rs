@@ -108,6 +108,52 @@ struct Track {
 }
 
 impl Track {
+    /// The track's landmark and refined point when its running estimate lies within
+    /// `radius_m` of `position_in_world`, its parallax reaches `min_parallax_rad` and its
+    /// rays meet at one point; `None` otherwise. The refinement is kept until the track
+    /// gains a ray.
+    fn refined_within(
+        &mut self,
+        position_in_world: &Vector3<f64>,
+        radius_m: f64,
+        min_parallax_rad: f64,
+    ) -> Option<(MappedLandmark, TriangulatedPoint)> {
+        let running = self.estimate.as_ref()?;
+        if (running.point - position_in_world).norm() > radius_m {
+            return None;
+        }
+        // The parallax criterion does not need the refinement (same rays, same formula as
+        // `TriangulatedPoint::max_parallax_rad`).
+        let u0 = self.rays.first()?.ray.direction;
+        let parallax = u0.cross(&self.far.1).norm().atan2(u0.dot(&self.far.1));
+        if parallax.is_nan() || parallax < min_parallax_rad {
+            return None;
+        }
+        let n_rays = self.rays.len();
+        let e = match &self.refined {
+            Some((n, e)) if *n == n_rays => (*e)?,
+            _ => {
+                // A track whose rays do not meet at one point (rays of different landmarks
+                // or false detections joined while the gates were wide) is no surrogate:
+                // its refinement is not kept.
+                let e = refine_landmark(&self.rays)
+                    .ok()
+                    .filter(|e| rays_consistent(&self.rays, &e.point));
+                self.refined = Some((n_rays, e));
+                e?
+            }
+        };
+        let landmark = MappedLandmark {
+            id: self.id,
+            position_enu: e.point,
+            covariance: e.covariance,
+            n_obs: n_rays,
+            max_parallax_rad: e.max_parallax_rad(),
+            class: self.class,
+        };
+        Some((landmark, e))
+    }
+
     /// The mapped landmark of this track, refined to `e`.
     fn mapped(&self, e: &TriangulatedPoint) -> MappedLandmark {
         MappedLandmark {
@@ -577,43 +623,12 @@ impl LandmarkMapper {
             .iter_mut()
             .filter(|t| t.rays.len() >= min_rays)
             .filter_map(|t| {
-                let running = t.estimate.as_ref()?;
-                if (running.point - position_in_world).norm() > radius_m {
-                    return None;
-                }
-                // The parallax criterion does not need the refinement (same rays, same
-                // formula as `TriangulatedPoint::max_parallax_rad`).
-                let u0 = t.rays.first()?.ray.direction;
-                let parallax = u0.cross(&t.far.1).norm().atan2(u0.dot(&t.far.1));
-                if parallax < c.min_parallax_rad {
-                    return None;
-                }
-                let n_rays = t.rays.len();
-                let e = match &t.refined {
-                    Some((n, e)) if *n == n_rays => (*e)?,
-                    _ => {
-                        // A track whose rays do not meet at one point (rays of different
-                        // landmarks or false detections joined while the gates were wide) is
-                        // no surrogate: its refinement is not kept.
-                        let e = refine_landmark(&t.rays)
-                            .ok()
-                            .filter(|e| rays_consistent(&t.rays, &e.point));
-                        t.refined = Some((n_rays, e));
-                        e?
-                    }
-                };
-                let landmark = MappedLandmark {
-                    id: t.id,
-                    position_enu: e.point,
-                    covariance: e.covariance,
-                    n_obs: n_rays,
-                    max_parallax_rad: e.max_parallax_rad(),
-                    class: t.class,
-                };
+                let (landmark, _) =
+                    t.refined_within(position_in_world, radius_m, c.min_parallax_rad)?;
                 if !c.accepts(&landmark) {
                     return None;
                 }
-                let pose_floor_covariance = t.floor_sum / n_rays as f64;
+                let pose_floor_covariance = t.floor_sum / landmark.n_obs as f64;
                 Some(NearbySurrogate {
                     landmark,
                     pose_floor_covariance,
@@ -642,34 +657,7 @@ impl LandmarkMapper {
             .iter_mut()
             .filter(|t| t.rays.len() >= min_rays)
             .filter_map(|t| {
-                let running = t.estimate.as_ref()?;
-                if (running.point - position_in_world).norm() > radius_m {
-                    return None;
-                }
-                let u0 = t.rays.first()?.ray.direction;
-                let parallax = u0.cross(&t.far.1).norm().atan2(u0.dot(&t.far.1));
-                if parallax.is_nan() || parallax < min_parallax {
-                    return None;
-                }
-                let n_rays = t.rays.len();
-                let e = match &t.refined {
-                    Some((n, e)) if *n == n_rays => (*e)?,
-                    _ => {
-                        let e = refine_landmark(&t.rays)
-                            .ok()
-                            .filter(|e| rays_consistent(&t.rays, &e.point));
-                        t.refined = Some((n_rays, e));
-                        e?
-                    }
-                };
-                let landmark = MappedLandmark {
-                    id: t.id,
-                    position_enu: e.point,
-                    covariance: e.covariance,
-                    n_obs: n_rays,
-                    max_parallax_rad: e.max_parallax_rad(),
-                    class: t.class,
-                };
+                let (landmark, e) = t.refined_within(position_in_world, radius_m, min_parallax)?;
                 if c.accepts(&landmark) {
                     // A surrogate already ([`Self::surrogates_near`]).
                     return None;
@@ -684,7 +672,7 @@ impl LandmarkMapper {
                 if seen_sigma_m.is_nan() || seen_sigma_m > c.max_sigma_m {
                     return None;
                 }
-                let pose_floor_covariance = t.floor_sum / n_rays as f64;
+                let pose_floor_covariance = t.floor_sum / landmark.n_obs as f64;
                 Some(SeenAhead {
                     surrogate: NearbySurrogate {
                         landmark,
