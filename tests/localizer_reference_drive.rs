@@ -9,10 +9,10 @@
 //! σ 3 cm) and 4.1 m off (4–6 surrogates, no surveyed landmark, σ 0.27 m) before the
 //! innovation gate and the redundancy rule for surrogate fixes.
 
-use std::sync::Arc;
-use vgps::localizer::{
-    Frame, GnssPosition, LandmarkMap, Localizer, LocalizerOptions, LocalizerStatus,
-};
+#[path = "support/drive_tally.rs"]
+mod drive_tally;
+
+use vgps::localizer::LocalizerOptions;
 use vgps::matcher::MatchOptions;
 use vgps::simulate::{Preset, Scenario, simulate};
 
@@ -29,9 +29,6 @@ const MIN_CONTAINMENT: f64 = 0.90;
 /// frame, fraction of the fixes inside their 95 % ellipse).
 fn replay(seed: u64, min_link_probability: f64) -> (usize, usize, f64, u64, f64) {
     let drive = simulate(&Scenario::preset(Preset::Reference, seed)).unwrap();
-    let landmarks = drive.surveyed_landmarks().unwrap();
-    let map = Arc::new(LandmarkMap::from_landmarks(&landmarks, None).unwrap());
-    let scenario = vgps::geo::LocalFrame::new(drive.scenario.origin);
     let options = LocalizerOptions {
         matcher: MatchOptions {
             min_link_probability,
@@ -39,39 +36,8 @@ fn replay(seed: u64, min_link_probability: f64) -> (usize, usize, f64, u64, f64)
         },
         ..LocalizerOptions::default()
     };
-    let rig = Arc::new(drive.scenario.rig.clone());
-    let mut localizer = Localizer::new(rig, Arc::clone(&map), options).unwrap();
-    let (mut ok, mut inside, mut worst, mut worst_frame) = (0, 0, 0.0f64, 0);
-    for f in &drive.frames {
-        let detections: Vec<_> = f.detections.iter().map(|d| d.detection.clone()).collect();
-        let gnss = vgps::drive::gnss::gnss_at(&drive.gnss, f.time_s)
-            .map(|position| GnssPosition { position });
-        let fix = localizer.process(&Frame::from_detections(f.time_s, &detections, &map, gnss));
-        if fix.status != LocalizerStatus::Ok {
-            continue;
-        }
-        let Some(e) = fix.estimate else { continue };
-        ok += 1;
-        let truth = scenario
-            .try_to_geodetic(&f.world_from_rig.translation.vector)
-            .unwrap();
-        let d = (e.world_from_rig.translation.vector - map.frame().to_enu(&truth)).xy();
-        if d.norm() > worst {
-            (worst, worst_frame) = (d.norm(), f.frame);
-        }
-        let c = e.covariance.fixed_view::<2, 2>(0, 0).into_owned();
-        // χ²(2 dof) at 95 %: 5.991.
-        if c.try_inverse().is_some_and(|ci| d.dot(&(ci * d)) <= 5.991) {
-            inside += 1;
-        }
-    }
-    (
-        ok,
-        drive.frames.len(),
-        worst,
-        worst_frame,
-        inside as f64 / ok.max(1) as f64,
-    )
+    let t = drive_tally::replay(&drive, options, &|_| true);
+    (t.ok, t.frames, t.worst_m, t.worst_frame, t.containment)
 }
 
 fn check(seed: u64, min_link_probability: f64) {
