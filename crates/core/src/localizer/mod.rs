@@ -1273,6 +1273,35 @@ impl Localizer {
         });
     }
 
+    /// The lamps seen ahead from `position` ([`LandmarkMapper::surrogates_seen_from`]) as
+    /// candidates, their ids recorded in `seen_ahead`: the rig's travel over `interval_s`
+    /// (the time to the next refresh, as since the last), at least
+    /// [`MIN_SEEN_AHEAD_HORIZON_S`], counts their range error.
+    fn seen_ahead_candidates(
+        &mut self,
+        position: &Vector3<f64>,
+        interval_s: f64,
+    ) -> Vec<Candidate> {
+        let radius = self.options.matcher.visibility_range_m + SURROGATE_MARGIN_M;
+        let speed = self.state.map_or(0.0, |s| s.velocity.norm());
+        let horizon = interval_s.clamp(MIN_SEEN_AHEAD_HORIZON_S, MAX_SEEN_AHEAD_INTERVAL_S);
+        let travel = (speed * horizon).min(SURROGATE_MARGIN_M);
+        let seen = self.mapper.surrogates_seen_from(position, radius, travel);
+        seen.into_iter()
+            .map(|s| {
+                let l = &s.surrogate.landmark;
+                self.seen_ahead.insert(l.id);
+                Candidate {
+                    position: l.position_enu,
+                    sigma_m: s.seen_sigma_m,
+                    class: l.class,
+                    source: CandidateSource::Surrogate(l.id),
+                    common_covariance: Some(s.seen_covariance + s.surrogate.pose_floor_covariance),
+                }
+            })
+            .collect()
+    }
+
     /// Gives the mapper the observations not associated with a surveyed landmark and
     /// refreshes the surrogates every [`SURROGATE_REFRESH_FRAMES`] frames.
     ///
@@ -1355,28 +1384,8 @@ impl Localizer {
             let since = self.last_refresh_s.map_or(0.0, |t0| (time_s - t0).abs());
             self.last_refresh_s = Some(time_s);
             if short {
-                // How far the rig goes before the next refresh: as far as since the last.
-                let speed = self.state.map_or(0.0, |s| s.velocity.norm());
-                let horizon = since.clamp(MIN_SEEN_AHEAD_HORIZON_S, MAX_SEEN_AHEAD_INTERVAL_S);
-                let travel = (speed * horizon).min(SURROGATE_MARGIN_M);
-                let seen = self.mapper.surrogates_seen_from(
-                    &t.world_from_rig.translation.vector,
-                    radius,
-                    travel,
-                );
-                for s in seen {
-                    let l = &s.surrogate.landmark;
-                    self.seen_ahead.insert(l.id);
-                    self.surrogate_candidates.push(Candidate {
-                        position: l.position_enu,
-                        sigma_m: s.seen_sigma_m,
-                        class: l.class,
-                        source: CandidateSource::Surrogate(l.id),
-                        common_covariance: Some(
-                            s.seen_covariance + s.surrogate.pose_floor_covariance,
-                        ),
-                    });
-                }
+                let seen = self.seen_ahead_candidates(&t.world_from_rig.translation.vector, since);
+                self.surrogate_candidates.extend(seen);
             }
         }
     }
