@@ -98,8 +98,11 @@ fn the_reported_covariance_grows_with_the_distance_carried_on_surrogates() {
     // axis, `d` the path since the last fix on surveyed landmarks.
     let drive = generate(&DriveSpec::issue(7));
     let run = |rate: f64| {
+        // Without the lamps seen ahead, whose fixes report their own, larger drift rate
+        // (`seen_ahead_drift_per_m`) whatever `surrogate_drift_per_m` says.
         let options = LocalizerOptions {
             surrogate_drift_per_m: rate,
+            surrogates_seen_ahead: false,
             ..LocalizerOptions::default()
         };
         let mut fixes = Vec::new();

@@ -6,8 +6,8 @@
 use nalgebra::Vector3;
 use std::sync::Arc;
 use vgps_core::localizer::{
-    AttitudePrior, Frame, LAST_KNOWN_SEARCH_INTERVAL_S, Localizer, LocalizerOptions,
-    LocalizerStatus,
+    AttitudePrior, Frame, LAST_KNOWN_SEARCH_INTERVAL_S, Localizer, LocalizerError,
+    LocalizerOptions, LocalizerStatus,
 };
 
 mod common;
@@ -211,4 +211,27 @@ fn searches_around_the_last_place_known_are_at_most_one_a_second() {
     assert!(t3 - t1 >= LAST_KNOWN_SEARCH_INTERVAL_S, "{t1} {t3}");
     let fix = localizer.process(&again);
     assert_eq!(fix.status, LocalizerStatus::Ok, "{fix:?}");
+}
+
+#[test]
+fn drift_rates_out_of_range_are_refused() {
+    let common::TestDrive { map, rig, .. } = small_drive();
+    for bad in [-0.001, f64::NAN, f64::INFINITY] {
+        let surrogate = LocalizerOptions {
+            surrogate_drift_per_m: bad,
+            ..LocalizerOptions::default()
+        };
+        let seen = LocalizerOptions {
+            seen_ahead_drift_per_m: bad,
+            ..LocalizerOptions::default()
+        };
+        assert_eq!(
+            Localizer::new(Arc::clone(&rig), Arc::clone(&map), surrogate).err(),
+            Some(LocalizerError::InvalidOption("surrogate_drift_per_m"))
+        );
+        assert_eq!(
+            Localizer::new(Arc::clone(&rig), Arc::clone(&map), seen).err(),
+            Some(LocalizerError::InvalidOption("seen_ahead_drift_per_m"))
+        );
+    }
 }

@@ -203,8 +203,8 @@ pub const PRIOR_VERTICAL_HALF_RANGE_M: f64 = 3.0;
 /// ellipse's radius in σ) and takes the day drive's backward fixes on surrogates alone
 /// from 73 % to 99 % inside their 95 % ellipse.
 pub const DEFAULT_SURROGATE_DRIFT_PER_M: f64 = 0.001;
-/// Drift per metre carried of a fix that uses a lamp seen ahead
-/// ([`LocalizerOptions::surrogates_seen_ahead`]; 1σ per axis): such lamps are placed from
+/// Default drift per metre carried of a fix that uses a lamp seen ahead
+/// ([`LocalizerOptions::seen_ahead_drift_per_m`]; 1σ per axis): such lamps are placed from
 /// a short stretch of rays, so a map carried on them drifts faster.
 pub const SEEN_AHEAD_DRIFT_PER_M: f64 = 0.003;
 /// The longest interval between surrogate refreshes (seconds) over which the travel to the
@@ -264,8 +264,12 @@ pub struct LocalizerOptions {
     /// surrogate criteria still refuse (too few rays or too little parallax to be placed
     /// in every direction) but that are placed well enough *as seen from the rig* become
     /// candidates until the next refresh (docs/localizer.md, "Lamps seen ahead"). A fix
-    /// that uses one carries its drift at [`SEEN_AHEAD_DRIFT_PER_M`] at least.
+    /// that uses one reports its drift at [`Self::seen_ahead_drift_per_m`].
     pub surrogates_seen_ahead: bool,
+    /// Drift per metre carried of a fix that uses a lamp seen ahead (1σ per axis): the
+    /// larger of this and [`Self::surrogate_drift_per_m`] replaces the latter for such a
+    /// fix. Default [`SEEN_AHEAD_DRIFT_PER_M`].
+    pub seen_ahead_drift_per_m: f64,
 }
 
 impl Default for LocalizerOptions {
@@ -289,6 +293,7 @@ impl Default for LocalizerOptions {
             level_tolerance_rad: Some(DEFAULT_LEVEL_TOLERANCE_RAD),
             surrogate_drift_per_m: DEFAULT_SURROGATE_DRIFT_PER_M,
             surrogates_seen_ahead: true,
+            seen_ahead_drift_per_m: SEEN_AHEAD_DRIFT_PER_M,
         }
     }
 }
@@ -614,6 +619,9 @@ impl Localizer {
         if !(options.surrogate_drift_per_m.is_finite() && options.surrogate_drift_per_m >= 0.0) {
             return Err(LocalizerError::InvalidOption("surrogate_drift_per_m"));
         }
+        if !(options.seen_ahead_drift_per_m.is_finite() && options.seen_ahead_drift_per_m >= 0.0) {
+            return Err(LocalizerError::InvalidOption("seen_ahead_drift_per_m"));
+        }
         let mapper = LandmarkMapper::new(options.mapper)
             .map_err(|_| LocalizerError::InvalidOption("mapper"))?;
         Ok(Self {
@@ -787,7 +795,7 @@ impl Localizer {
         let drift_per_m = if uses_seen_ahead {
             self.options
                 .surrogate_drift_per_m
-                .max(SEEN_AHEAD_DRIFT_PER_M)
+                .max(self.options.seen_ahead_drift_per_m)
         } else {
             self.options.surrogate_drift_per_m
         };
