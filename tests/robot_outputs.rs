@@ -490,6 +490,35 @@ fn an_address_in_use_leaves_the_replay_and_its_files() {
         "{stderr}"
     );
     assert!(out.join("fixes.nmea").exists());
+    // A wait that is not a non-negative number, or a wait without a stream: usage errors.
+    for bad in ["-1", "nan", "inf"] {
+        let o = vgps(&[
+            "replay",
+            r.drive.to_str().unwrap(),
+            "--nmea-tcp",
+            "127.0.0.1:0",
+            "--nmea-wait-client",
+            bad,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{bad}: {stderr}");
+        assert!(
+            stderr.contains(&format!("`{bad}` is not a non-negative finite number")),
+            "{stderr}"
+        );
+    }
+    let o = vgps(&[
+        "replay",
+        r.drive.to_str().unwrap(),
+        "--nmea-wait-client",
+        "5",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--nmea-tcp"));
 }
 
 #[test]

@@ -22,7 +22,7 @@ pub struct RobotOutputArgs {
     pub pace: PaceArg,
     /// Before the first frame, wait up to this many seconds for a client of the live
     /// stream (gpsd started after vgps then gets every fix); 0 does not wait.
-    #[arg(long, value_name = "S", default_value_t = 0.0, value_parser = super::args::parse_non_negative, requires = "nmea_tcp")]
+    #[arg(long, value_name = "S", default_value_t = 0.0, value_parser = super::args::parse_non_negative, requires = "nmea_tcp", allow_hyphen_values = true)]
     pub nmea_wait_client: f64,
     /// Also write the fixes as ROS 2 messages (NavSatFix, PoseWithCovarianceStamped, Imu)
     /// into this MCAP file; see docs/ros2.md.
