@@ -143,15 +143,7 @@ impl Track {
                 e?
             }
         };
-        let landmark = MappedLandmark {
-            id: self.id,
-            position_enu: e.point,
-            covariance: e.covariance,
-            n_obs: n_rays,
-            max_parallax_rad: e.max_parallax_rad(),
-            class: self.class,
-        };
-        Some((landmark, e))
+        Some((self.mapped(&e), e))
     }
 
     /// The mapped landmark of this track, refined to `e`.
@@ -1388,17 +1380,13 @@ mod cone_tests {
 /// that moves `travel_m` before it looks again: across the line of sight whole, along it
 /// times `sin² δ`, `sin δ = min(1, travel / |v|)`: `P C P + sin²δ (uᵀCu) uuᵀ`, `u = v/|v|`,
 /// `P = I − uuᵀ`. `c` itself for `v = 0`.
-pub fn seen_covariance(
-    c: &nalgebra::Matrix3<f64>,
-    v: &Vector3<f64>,
-    travel_m: f64,
-) -> nalgebra::Matrix3<f64> {
+pub fn seen_covariance(c: &Matrix3<f64>, v: &Vector3<f64>, travel_m: f64) -> Matrix3<f64> {
     let range = v.norm();
     if range.is_nan() || range <= 0.0 {
         return *c;
     }
     let u = v / range;
-    let p = nalgebra::Matrix3::identity() - u * u.transpose();
+    let p = Matrix3::identity() - u * u.transpose();
     let along = u.dot(&(c * u)).max(0.0);
     let sin = (travel_m / range).min(1.0);
     p * c * p + u * u.transpose() * (along * sin * sin)
