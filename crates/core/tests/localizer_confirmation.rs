@@ -1,6 +1,7 @@
 //! `LocalizerOptions::confirm_false_alarms`: a pose re-acquired by the matcher on weak
-//! evidence (more false alarms than the option) is tracked from but not reported; the next
-//! frame's fix, tracked from it, is. A pose the next frame contradicts is never reported.
+//! evidence (more false alarms than the option) is tracked from but not reported; the
+//! first later frame tracked from it is. A pose the next frame contradicts is never
+//! reported.
 
 use std::sync::Arc;
 use vgps_core::localizer::{
@@ -44,7 +45,7 @@ fn localizer(drive: &common::TestDrive, confirm_false_alarms: f64) -> Localizer 
 fn a_weak_reacquisition_is_reported_once_the_next_frame_tracks_from_it() {
     let drive = common::short_drive(7, 100.0);
     let frames = frames(&drive, 6);
-    // Every re-acquisition counts as weak: its first frame waits, the next is the fix.
+    // Every re-acquisition counts as weak: its frame waits.
     let mut strict = localizer(&drive, 1e-300);
     let first = strict.process(&frames[0]);
     assert_eq!(first.status, LocalizerStatus::NoFix, "{first:?}");

@@ -856,7 +856,7 @@ impl Localizer {
             );
         }
         // A re-acquired pose on weak evidence is kept (tracked from, mapped from) but not
-        // reported: the next frame's fix, tracked from it, confirms it.
+        // reported: the first later frame tracked from it confirms it.
         if let Some(log10) = self.unconfirmed.take() {
             fix.message = format!(
                 "the re-acquired pose awaits confirmation by the next frame: {} surveyed landmark(s), {} surrogate(s), false alarms 10^{log10:.1} (above 10^{:.1})",
@@ -1244,13 +1244,13 @@ impl Localizer {
             _ => return Err((LocalizerStatus::NoFix, result.message)),
         };
         let estimate = estimate.ok_or((LocalizerStatus::NoFix, "matcher gave no pose".into()))?;
-        let tracked = self.track_matched(&estimate, observations, options.up_in_rig)?;
-        // Weak evidence: the pose is tracked from, but reported only once the next frame
-        // confirms it (see `LocalizerOptions::confirm_false_alarms`).
+        let (t, candidates) = self.track_matched(&estimate, observations, options.up_in_rig)?;
+        // Weak evidence: the pose is tracked from, but reported only once a later frame
+        // tracks from it (see `LocalizerOptions::confirm_false_alarms`).
         self.unconfirmed = result
             .log10_false_alarms
             .filter(|&l| l > self.options.confirm_false_alarms.log10());
-        Ok((tracked.0, tracked.1, source))
+        Ok((t, candidates, source))
     }
 
     /// The matcher's pose tracked: associated with every candidate near it and refined, or
