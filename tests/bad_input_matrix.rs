@@ -1448,6 +1448,20 @@ fn rows() -> Vec<Row> {
             stderr: &["--matcher-memory-mib"],
         },
         Row {
+            name: "replay: a negative turn rate change",
+            setup: |t| {
+                drive(t);
+            },
+            args: &[
+                "replay",
+                "{t}/d",
+                "--quiet",
+                "--max-turn-rate-change-deg-s=-5",
+            ],
+            code: 2,
+            stderr: &["--max-turn-rate-change-deg-s", "non-negative"],
+        },
+        Row {
             name: "replay: output directory under a regular file (fails before localizing)",
             setup: |t| {
                 drive(t);

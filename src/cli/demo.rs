@@ -348,6 +348,7 @@ fn replay_settings(
         visibility_range_m: None,
         matcher_memory_bytes: super::replay::DEFAULT_MATCHER_MEMORY_MIB as usize * (1 << 20),
         surrogate_drift_per_m: vgps_core::localizer::DEFAULT_SURROGATE_DRIFT_PER_M,
+        max_turn_rate_change_rad_s: vgps_core::localizer::DEFAULT_MAX_TURN_RATE_CHANGE_RAD_S,
         from_images,
         image_size: None,
         detector,

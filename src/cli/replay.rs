@@ -121,6 +121,13 @@ pub struct ReplayArgs {
     /// docs/localizer.md ("Honest covariance"); measure your own detector's with truth.
     #[arg(long, value_name = "PERCENT", default_value_t = 100.0 * vgps_core::localizer::DEFAULT_SURROGATE_DRIFT_PER_M, value_parser = super::args::parse_non_negative)]
     pub surrogate_drift_percent: f64,
+    /// Largest change of the turn rate between two fixes that tracking recovers by turning
+    /// its prediction about the vertical (degrees per second; `0` turns it off). The
+    /// motion model keeps the last turn rate, so a turn that starts or ends between two
+    /// frames leaves the predicted heading off (docs/localizer.md, "When the turn was
+    /// missed").
+    #[arg(long, value_name = "DEG_PER_S", default_value_t = vgps_core::localizer::DEFAULT_MAX_TURN_RATE_CHANGE_RAD_S.to_degrees(), value_parser = super::args::parse_non_negative)]
+    pub max_turn_rate_change_deg_s: f64,
     /// Detect landmarks in the images even when the drive has `detections.csv`.
     #[arg(long)]
     pub from_images: bool,
@@ -408,6 +415,7 @@ fn localizer_options(
         pixel_sigma_px: settings.pixel_sigma_px,
         surrogates: settings.surrogates,
         surrogate_drift_per_m: settings.surrogate_drift_per_m,
+        max_turn_rate_change_rad_s: settings.max_turn_rate_change_rad_s,
         // The flag, else the calibration's declaration, else the default (5°).
         level_tolerance_rad: settings
             .up_tolerance_rad

@@ -122,6 +122,8 @@ pub struct ReplaySettings {
     /// `--surrogate-drift-percent` as a fraction: the drift of a pose carried on
     /// surrogates per metre (1σ), added to the reported covariance.
     pub surrogate_drift_per_m: f64,
+    /// `--max-turn-rate-change-deg-s`, rad/s: the turn rate change tracking recovers.
+    pub max_turn_rate_change_rad_s: f64,
     /// Detect lamps in the images even when the drive has a detections file.
     pub from_images: bool,
     /// The image size of cameras whose calibration has none (`--image-size WxH`).
@@ -329,6 +331,7 @@ impl TryFrom<ReplayArgs> for ReplaySettings {
             visibility_range_m: a.visibility_range_m,
             matcher_memory_bytes: (a.matcher_memory_mib as usize).saturating_mul(1 << 20),
             surrogate_drift_per_m: a.surrogate_drift_percent / 100.0,
+            max_turn_rate_change_rad_s: a.max_turn_rate_change_deg_s.to_radians(),
             from_images: a.from_images,
             image_size: a.image_size,
             detector: a.detector.into(),

@@ -25,6 +25,10 @@
 //!    same point), at least [`MIN_TRACKED_CORRESPONDENCES`] of them; associations the
 //!    prediction did not decide (another landmark in an associated observation's gate, as
 //!    after a gap) need [`MIN_UNAMBIGUOUS_SURROGATE_FIX_ASSOCIATIONS`] distinct points.
+//!    When neither the prediction nor the pose most observations agree on tracks, the
+//!    prediction is tried turned about the vertical, up to
+//!    [`LocalizerOptions::max_turn_rate_change_rad_s`] × the time since the last fix each
+//!    way (a turn that starts or ends between frames; see `yaw_swept`), under the same tests.
 //! 2. **Re-acquisition.** Without a usable prediction (start, gap, tracking failure), the
 //!    matcher ([`crate::matcher::match_detections`]) identifies the landmarks around a prior:
 //!    the prediction (its radius growing with the gap), else the satellite GPS position of
@@ -228,6 +232,12 @@ pub const MIN_SEEN_AHEAD_HORIZON_S: f64 = 0.6;
 /// (docs/localizer.md, "Method", step 2). Right re-acquisitions on the project's drives
 /// have 10^-3.1 to 10^-18; at the start of a drive, on a dozen lamps, 10^-5.8.
 pub const DEFAULT_CONFIRM_FALSE_ALARMS: f64 = 1e-5;
+/// Default largest change of the turn rate between two fixes that tracking recovers by
+/// turning the prediction about the vertical (rad/s, ≈ 86°/s):
+/// [`LocalizerOptions::max_turn_rate_change_rad_s`]. The simulator's drives start and end
+/// their turns within a frame at up to 40°/s; the independent drives of issue #25 take a
+/// 12 m corner at 12 m/s (1 rad/s).
+pub const DEFAULT_MAX_TURN_RATE_CHANGE_RAD_S: f64 = 1.5;
 
 /// Options of a [`Localizer`]; `Default` gives the documented constants.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -292,6 +302,14 @@ pub struct LocalizerOptions {
     /// `f64::INFINITY` reports every re-acquired pose at once. Default
     /// [`DEFAULT_CONFIRM_FALSE_ALARMS`].
     pub confirm_false_alarms: f64,
+    /// When tracking from the prediction fails, the prediction is turned about the
+    /// vertical by up to this turn rate change (rad/s) × the time since the last fix, each
+    /// way, and tracked again under the same tests; the fix is kept only when every turned
+    /// prediction that gives one reads the frame the same way. The motion model keeps the
+    /// last turn rate, so a turn that starts or ends between two frames leaves the
+    /// predicted heading off by more than the association gate. `0` turns it off; finite,
+    /// not negative. Default [`DEFAULT_MAX_TURN_RATE_CHANGE_RAD_S`].
+    pub max_turn_rate_change_rad_s: f64,
 }
 
 impl Default for LocalizerOptions {
@@ -317,6 +335,7 @@ impl Default for LocalizerOptions {
             surrogates_seen_ahead: true,
             seen_ahead_drift_per_m: SEEN_AHEAD_DRIFT_PER_M,
             confirm_false_alarms: DEFAULT_CONFIRM_FALSE_ALARMS,
+            max_turn_rate_change_rad_s: DEFAULT_MAX_TURN_RATE_CHANGE_RAD_S,
         }
     }
 }
@@ -651,6 +670,11 @@ impl Localizer {
         if options.confirm_false_alarms.is_nan() || options.confirm_false_alarms <= 0.0 {
             return Err(LocalizerError::InvalidOption("confirm_false_alarms"));
         }
+        if !(options.max_turn_rate_change_rad_s.is_finite()
+            && options.max_turn_rate_change_rad_s >= 0.0)
+        {
+            return Err(LocalizerError::InvalidOption("max_turn_rate_change_rad_s"));
+        }
         let mapper = LandmarkMapper::new(options.mapper)
             .map_err(|_| LocalizerError::InvalidOption("mapper"))?;
         Ok(Self {
@@ -957,6 +981,16 @@ impl Localizer {
         ) && refusal(&t).is_none()
             && consensus_redundant(&t, &candidates)
         {
+            return Ok((t, candidates, FixSource::Tracking));
+        }
+        if let Some(t) = yaw_swept(
+            self.options.max_turn_rate_change_rad_s,
+            state,
+            time_s,
+            (&pose, &guess, &predicted_covariance),
+            observations,
+            &candidates,
+        ) {
             return Ok((t, candidates, FixSource::Tracking));
         }
         Err(why)
@@ -1444,6 +1478,81 @@ impl Localizer {
             }
         }
     }
+}
+
+/// Most yaw offsets tried on each side of the prediction.
+pub const MAX_YAW_STEPS: usize = 32;
+
+/// Tracking from the prediction turned about the vertical: a turn that starts or ends
+/// between two frames (the motion model keeps the last turn rate) leaves the predicted
+/// heading off by more than the association gate, while position and tilt stay predicted
+/// well. The offsets reach `max_turn_rate_change_rad_s` × the time since the motion state
+/// on each side, the association gate's half-width apart (at most [`MAX_YAW_STEPS`]
+/// a side); the predicted travel turns by half the offset (an arc). Each turned
+/// prediction's fix must pass every test against it ([`tracked_fix_refusal`]: heading is
+/// the one thing those tests leave free), and the fix is returned only when the accepted
+/// ones read the frame one way: no observation linked to two landmarks. Of those, the one
+/// with the most associations (then the smallest mean χ²).
+fn yaw_swept(
+    max_turn_rate_change_rad_s: f64,
+    state: &MotionState,
+    time_s: f64,
+    (pose, guess, predicted_covariance): (&Pose, &GuessUncertainty, &Matrix3<f64>),
+    observations: &[ObsRay],
+    candidates: &[Candidate],
+) -> Option<track::TrackResult> {
+    let dt = (time_s - state.time_s).max(0.0);
+    let max = max_turn_rate_change_rad_s * dt;
+    let step =
+        (track::ASSOCIATION_GATE_SIGMAS * guess.rotation_rad).max(max / MAX_YAW_STEPS as f64);
+    if !(step > 0.0 && max > step) {
+        return None;
+    }
+    let steps = ((max / step).ceil() as usize).min(MAX_YAW_STEPS);
+    let travel = state.velocity * dt;
+    let mut accepted: Vec<track::TrackResult> = Vec::new();
+    for k in 1..=steps {
+        for sign in [-1.0, 1.0] {
+            let yaw = sign * (k as f64 * step).min(max);
+            let turn = Rotation3::from_axis_angle(&Vector3::z_axis(), yaw);
+            let half = Rotation3::from_axis_angle(&Vector3::z_axis(), 0.5 * yaw);
+            let translation = state.pose.translation.vector + half * travel;
+            let turned = Pose::from_parts(translation.into(), turn * pose.rotation);
+            if let Some(t) = track::track(
+                &turned,
+                *guess,
+                observations,
+                candidates,
+                MIN_TRACKED_CORRESPONDENCES,
+            ) && tracked_fix_refusal(
+                &turned,
+                guess,
+                predicted_covariance,
+                &t,
+                candidates,
+                observations,
+            )
+            .is_none()
+            {
+                accepted.push(t);
+            }
+        }
+    }
+    let conflict = |a: &track::TrackResult, b: &track::TrackResult| {
+        a.assignment
+            .iter()
+            .zip(&b.assignment)
+            .any(|(x, y)| x.is_some() && y.is_some() && x != y)
+    };
+    for (i, a) in accepted.iter().enumerate() {
+        if accepted[i + 1..].iter().any(|b| conflict(a, b)) {
+            return None;
+        }
+    }
+    accepted.into_iter().max_by(|a, b| {
+        let n = |t: &track::TrackResult| t.assignment.iter().flatten().count();
+        n(a).cmp(&n(b)).then(b.mean_chi2.total_cmp(&a.mean_chi2))
+    })
 }
 
 /// Whether a candidate is a lamp seen ahead (a mapped track promoted at the last refresh).
@@ -2157,6 +2266,125 @@ mod tests {
     /// 1 s gap the prediction's gate holds other landmarks than the associated ones, so
     /// tracking chose the four associations; four bearings leave the χ² test 2 degrees of
     /// freedom, too few for a chosen set: no fix. The same four associations from a
+    /// Landmarks every `spacing_deg` of azimuth on a circle of 30 m around the origin, 5 m
+    /// up, each seen exactly from the origin by a rig facing `true_yaw`.
+    fn ring(spacing_deg: f64, true_yaw: f64) -> (Vec<Candidate>, Vec<ObsRay>) {
+        let n = (360.0 / spacing_deg).round() as usize;
+        let rig_from_world = Rotation3::from_axis_angle(&Vector3::z_axis(), -true_yaw);
+        let mut candidates = Vec::new();
+        let mut observations = Vec::new();
+        for k in 0..n {
+            let a = (k as f64 * spacing_deg + 7.0).to_radians();
+            let p = Vector3::new(30.0 * a.cos(), 30.0 * a.sin(), 5.0);
+            candidates.push(surveyed(k, p));
+            observations.push(ObsRay {
+                ray: Ray {
+                    origin: Vector3::zeros(),
+                    direction: rig_from_world * p.normalize(),
+                },
+                sigma_rad: SIGMA_RAD,
+                class: None,
+            });
+        }
+        (candidates, observations)
+    }
+
+    /// A motion state 0.2 s before `time_s = 0.2`, driving along x at 10 m/s without
+    /// turning, that puts the prediction at the origin facing yaw 0.
+    fn straight_state() -> MotionState {
+        let mut covariance = Matrix6::zeros();
+        for k in 0..3 {
+            covariance[(k, k)] = 0.02 * 0.02;
+            covariance[(k + 3, k + 3)] = 1e-3 * 1e-3;
+        }
+        MotionState {
+            time_s: 0.0,
+            pose: Pose::from_parts(Vector3::new(-2.0, 0.0, 0.0).into(), Rotation3::identity()),
+            covariance,
+            velocity: Vector3::new(10.0, 0.0, 0.0),
+            angular_velocity: Vector3::zeros(),
+        }
+    }
+
+    /// A turn the motion model missed (0.2 rad in 0.2 s): tracking from the prediction
+    /// fails, the yaw sweep finds the pose; a layout that reads the same turned by the
+    /// sweep's steps gives no fix.
+    #[test]
+    fn the_yaw_sweep_finds_a_turn_the_prediction_missed_and_no_ambiguous_one() {
+        let state = straight_state();
+        let predicted = Pose::identity();
+        let guess = GuessUncertainty {
+            position_m: 0.05,
+            rotation_rad: 0.02,
+        };
+        let covariance = Matrix3::identity() * 0.05 * 0.05;
+        // Landmarks 40° apart: one reading within the sweep's ±0.3 rad.
+        let (candidates, observations) = ring(40.0, 0.2);
+        let direct = track::track(&predicted, guess, &observations, &candidates, 4);
+        assert!(
+            direct.is_none_or(|t| tracked_fix_refusal(
+                &predicted,
+                &guess,
+                &covariance,
+                &t,
+                &candidates,
+                &observations
+            )
+            .is_some()),
+            "the prediction alone tracks"
+        );
+        let t = yaw_swept(
+            DEFAULT_MAX_TURN_RATE_CHANGE_RAD_S,
+            &state,
+            0.2,
+            (&predicted, &guess, &covariance),
+            &observations,
+            &candidates,
+        )
+        .expect("the sweep finds the turned pose");
+        let yaw = t.world_from_rig.rotation.euler_angles().2;
+        assert!((yaw - 0.2).abs() < 1e-3, "yaw {yaw}");
+        assert!(t.world_from_rig.translation.vector.norm() < 0.01);
+        assert_eq!(t.assignment.iter().flatten().count(), observations.len());
+        // Landmarks 12° (0.21 rad) apart: turned by one spacing the frame reads as well.
+        let (candidates, observations) = ring(12.0, 0.1);
+        assert!(
+            yaw_swept(
+                DEFAULT_MAX_TURN_RATE_CHANGE_RAD_S,
+                &state,
+                0.2,
+                (&predicted, &guess, &covariance),
+                &observations,
+                &candidates,
+            )
+            .is_none()
+        );
+        // No sweep without time for a turn, nor when it is turned off.
+        let (candidates, observations) = ring(40.0, 0.2);
+        assert!(
+            yaw_swept(
+                0.0,
+                &state,
+                0.2,
+                (&predicted, &guess, &covariance),
+                &observations,
+                &candidates,
+            )
+            .is_none()
+        );
+        assert!(
+            yaw_swept(
+                DEFAULT_MAX_TURN_RATE_CHANGE_RAD_S,
+                &state,
+                0.0,
+                (&predicted, &guess, &covariance),
+                &observations,
+                &candidates,
+            )
+            .is_none()
+        );
+    }
+
     /// one-frame prediction (nothing else in the gates), or five chosen ones, are fixes.
     #[test]
     fn four_associations_chosen_in_a_wide_gate_are_no_fix() {
