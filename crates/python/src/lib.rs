@@ -647,7 +647,9 @@ impl PyLocalizer {
     /// A localizer for a calibration and a landmark map (CSV path or columns tuple).
     #[new]
     #[pyo3(signature = (calibration, landmarks, *, pixel_sigma_px = None, cold_start = true,
-        surrogates = true, level_tolerance_deg = Some(5.0), gnss_prior_radius_m = None))]
+        surrogates = true, level_tolerance_deg = Some(5.0), gnss_prior_radius_m = None,
+        max_turn_rate_change_deg_s = None))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         calibration: &Calibration,
         landmarks: &Bound<'_, PyAny>,
@@ -656,6 +658,7 @@ impl PyLocalizer {
         surrogates: bool,
         level_tolerance_deg: Option<f64>,
         gnss_prior_radius_m: Option<f64>,
+        max_turn_rate_change_deg_s: Option<f64>,
     ) -> PyResult<Self> {
         let (landmarks, _) = landmarks_arg(landmarks)?;
         let map = Arc::new(
@@ -669,6 +672,8 @@ impl PyLocalizer {
             surrogates,
             level_tolerance_rad: level_tolerance_deg.map(f64::to_radians),
             gnss_prior_radius_m: gnss_prior_radius_m.unwrap_or(defaults.gnss_prior_radius_m),
+            max_turn_rate_change_rad_s: max_turn_rate_change_deg_s
+                .map_or(defaults.max_turn_rate_change_rad_s, f64::to_radians),
             ..defaults
         };
         let inner =

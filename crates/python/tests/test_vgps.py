@@ -280,6 +280,15 @@ def test_localizer_frame_by_frame_on_a_simulated_drive(small_drive):
         loc.process(0.0, pixels=np.zeros((3, 3)))
 
 
+def test_localizer_refuses_a_negative_turn_rate_change(small_drive):
+    drive = json.loads((small_drive / "drive.json").read_text())
+    cal = vgps.Calibration.load(small_drive / drive["calibration"])
+    landmarks = small_drive / drive["landmarks"]
+    vgps.Localizer(cal, landmarks, max_turn_rate_change_deg_s=0.0)  # off: allowed
+    with pytest.raises(vgps.VgpsError, match="max_turn_rate_change_rad_s"):
+        vgps.Localizer(cal, landmarks, max_turn_rate_change_deg_s=-1.0)
+
+
 def test_localizer_backward_tracks_a_drive_in_reverse(small_drive):
     drive = json.loads((small_drive / "drive.json").read_text())
     cal = vgps.Calibration.load(small_drive / drive["calibration"])

@@ -57,6 +57,7 @@ class Localizer:
         surrogates: bool = True,
         level_tolerance_deg: Optional[float] = 5.0,
         gnss_prior_radius_m: Optional[float] = None,
+        max_turn_rate_change_deg_s: Optional[float] = None,
     ) -> None: ...
     def process(
         self,
