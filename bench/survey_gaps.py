@@ -2,6 +2,7 @@
 """Survey gaps over many seeds: how often the localizer carries the fix, and how honestly.
 
     python3 bench/survey_gaps.py VGPS WORKDIR [--short-seeds 2-9] [--reference-seeds 2-4]
+                                 [--corner-keep 40]
 
 VGPS is the `vgps` binary to measure (e.g. target/release/vgps); WORKDIR receives the
 drives (simulated once, kept) and one replay per drive and binary (named after the
@@ -10,7 +11,9 @@ simulator's presets cut the ways the localizer finds hardest, each with its surv
 
 - SL<seed>: the `short` preset's streetlight detections only (5 frames/s, lamps alone);
 - SD<seed>: the `short` preset's building-corner detections only, 40 % of them kept at
-  random (about the vertex detector's recall by day; replayed to 150 m);
+  random (about the vertex detector's recall by day; replayed to 150 m); with
+  `--corner-keep P`, P % of them, in drives named SD<P>_<seed> (how availability by day
+  grows with the detector's recall);
 - RL3_<seed>: the `reference` preset's streetlights, every third frame (5 frames/s);
 - RL1_<seed>: the `reference` preset's streetlights at 15 frames/s.
 
@@ -55,7 +58,7 @@ def filtered_copy(src, dst, keep_detection, keep_frame=lambda f: True):
     os.rename(dst + ".tmp", dst)
 
 
-def make_drives(vgps, work, short_seeds, reference_seeds):
+def make_drives(vgps, work, short_seeds, reference_seeds, corner_keep=40):
     drives = []
     for s in short_seeds:
         base = os.path.join(work, f"short{s}")
@@ -64,9 +67,10 @@ def make_drives(vgps, work, short_seeds, reference_seeds):
                            check=True, stdout=subprocess.DEVNULL)
         filtered_copy(base, os.path.join(work, f"SL{s}"), lambda r: r[5] == "streetlight")
         rng = random.Random(s)
-        filtered_copy(base, os.path.join(work, f"SD{s}"),
-                      lambda r: r[5] == "corner" and rng.random() < 0.4)
-        drives += [f"SL{s}", f"SD{s}"]
+        sd = f"SD{s}" if corner_keep == 40 else f"SD{corner_keep}_{s}"
+        filtered_copy(base, os.path.join(work, sd),
+                      lambda r: r[5] == "corner" and rng.random() < corner_keep / 100)
+        drives += [f"SL{s}", sd]
     for s in reference_seeds:
         base = os.path.join(work, f"reference{s}")
         if not os.path.exists(base):
@@ -97,11 +101,16 @@ def main():
     p.add_argument("work")
     p.add_argument("--short-seeds", default="2-9", type=seeds)
     p.add_argument("--reference-seeds", default="2-4", type=seeds)
+    p.add_argument("--corner-keep", default=40, type=int, metavar="PERCENT",
+                   help="share of the corner detections the SD drives keep (default 40; "
+                        "another value names them SD<PERCENT>_<seed>)")
     a = p.parse_args()
+    if not 0 < a.corner_keep <= 100:
+        p.error("--corner-keep must be within 1-100")
     os.makedirs(a.work, exist_ok=True)
     vgps = os.path.abspath(a.vgps)
     tag = os.path.basename(vgps)
-    drives = make_drives(vgps, a.work, a.short_seeds, a.reference_seeds)
+    drives = make_drives(vgps, a.work, a.short_seeds, a.reference_seeds, a.corner_keep)
     groups = {}
     for d in drives:
         out = os.path.join(a.work, f"out_{tag}_{d}")
