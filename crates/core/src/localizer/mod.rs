@@ -2262,10 +2262,6 @@ mod tests {
         assert!(associations_unambiguous(&t, &candidates, &far));
     }
 
-    /// Frame 69 of the day drive with the 60 px extent (issue #25, helper int25): after a
-    /// 1 s gap the prediction's gate holds other landmarks than the associated ones, so
-    /// tracking chose the four associations; four bearings leave the χ² test 2 degrees of
-    /// freedom, too few for a chosen set: no fix. The same four associations from a
     /// Landmarks every `spacing_deg` of azimuth on a circle of 30 m around the origin, 5 m
     /// up, each seen exactly from the origin by a rig facing `true_yaw`.
     fn ring(spacing_deg: f64, true_yaw: f64) -> (Vec<Candidate>, Vec<ObsRay>) {
@@ -2318,73 +2314,50 @@ mod tests {
             rotation_rad: 0.02,
         };
         let covariance = Matrix3::identity() * 0.05 * 0.05;
+        let sweep =
+            |rate: f64, time_s: f64, (candidates, observations): &(Vec<Candidate>, Vec<ObsRay>)| {
+                yaw_swept(
+                    rate,
+                    &state,
+                    time_s,
+                    (&predicted, &guess, &covariance),
+                    observations,
+                    candidates,
+                )
+            };
         // Landmarks 40° apart: one reading within the sweep's ±0.3 rad.
-        let (candidates, observations) = ring(40.0, 0.2);
-        let direct = track::track(&predicted, guess, &observations, &candidates, 4);
+        let apart = ring(40.0, 0.2);
+        let (candidates, observations) = &apart;
+        let direct = track::track(&predicted, guess, observations, candidates, 4);
         assert!(
             direct.is_none_or(|t| tracked_fix_refusal(
                 &predicted,
                 &guess,
                 &covariance,
                 &t,
-                &candidates,
-                &observations
+                candidates,
+                observations
             )
             .is_some()),
             "the prediction alone tracks"
         );
-        let t = yaw_swept(
-            DEFAULT_MAX_TURN_RATE_CHANGE_RAD_S,
-            &state,
-            0.2,
-            (&predicted, &guess, &covariance),
-            &observations,
-            &candidates,
-        )
-        .expect("the sweep finds the turned pose");
+        let t = sweep(DEFAULT_MAX_TURN_RATE_CHANGE_RAD_S, 0.2, &apart)
+            .expect("the sweep finds the turned pose");
         let yaw = t.world_from_rig.rotation.euler_angles().2;
         assert!((yaw - 0.2).abs() < 1e-3, "yaw {yaw}");
         assert!(t.world_from_rig.translation.vector.norm() < 0.01);
         assert_eq!(t.assignment.iter().flatten().count(), observations.len());
         // Landmarks 12° (0.21 rad) apart: turned by one spacing the frame reads as well.
-        let (candidates, observations) = ring(12.0, 0.1);
-        assert!(
-            yaw_swept(
-                DEFAULT_MAX_TURN_RATE_CHANGE_RAD_S,
-                &state,
-                0.2,
-                (&predicted, &guess, &covariance),
-                &observations,
-                &candidates,
-            )
-            .is_none()
-        );
-        // No sweep without time for a turn, nor when it is turned off.
-        let (candidates, observations) = ring(40.0, 0.2);
-        assert!(
-            yaw_swept(
-                0.0,
-                &state,
-                0.2,
-                (&predicted, &guess, &covariance),
-                &observations,
-                &candidates,
-            )
-            .is_none()
-        );
-        assert!(
-            yaw_swept(
-                DEFAULT_MAX_TURN_RATE_CHANGE_RAD_S,
-                &state,
-                0.0,
-                (&predicted, &guess, &covariance),
-                &observations,
-                &candidates,
-            )
-            .is_none()
-        );
+        assert!(sweep(DEFAULT_MAX_TURN_RATE_CHANGE_RAD_S, 0.2, &ring(12.0, 0.1)).is_none());
+        // No sweep when it is turned off, nor without time for a turn.
+        assert!(sweep(0.0, 0.2, &apart).is_none());
+        assert!(sweep(DEFAULT_MAX_TURN_RATE_CHANGE_RAD_S, 0.0, &apart).is_none());
     }
 
+    /// Frame 69 of the day drive with the 60 px extent (issue #25, helper int25): after a
+    /// 1 s gap the prediction's gate holds other landmarks than the associated ones, so
+    /// tracking chose the four associations; four bearings leave the χ² test 2 degrees of
+    /// freedom, too few for a chosen set: no fix. The same four associations from a
     /// one-frame prediction (nothing else in the gates), or five chosen ones, are fixes.
     #[test]
     fn four_associations_chosen_in_a_wide_gate_are_no_fix() {
