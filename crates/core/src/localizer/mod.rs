@@ -1538,14 +1538,11 @@ fn yaw_swept(
             }
         }
     }
-    let conflict = |a: &track::TrackResult, b: &track::TrackResult| {
-        a.assignment
-            .iter()
-            .zip(&b.assignment)
-            .any(|(x, y)| x.is_some() && y.is_some() && x != y)
-    };
     for (i, a) in accepted.iter().enumerate() {
-        if accepted[i + 1..].iter().any(|b| conflict(a, b)) {
+        if accepted[i + 1..]
+            .iter()
+            .any(|b| track::links_conflict(&a.assignment, &b.assignment))
+        {
             return None;
         }
     }

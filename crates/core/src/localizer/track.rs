@@ -589,12 +589,7 @@ pub(crate) fn pose_consensus(
     }
     // Another pose that explains nearly as many observations but links one of them to
     // another landmark is another reading of the frame.
-    let conflict = |theirs: &[Option<usize>]| {
-        links
-            .iter()
-            .zip(theirs)
-            .any(|(a, b)| a.is_some() && b.is_some() && a != b)
-    };
+    let conflict = |theirs: &[Option<usize>]| links_conflict(&links, theirs);
     let mut compared = 0;
     for (other, _, pose, theirs) in &scored[1..] {
         if other + CONSENSUS_MARGIN <= count || compared >= CONSENSUS_MAX_RIVALS {
@@ -618,6 +613,14 @@ pub(crate) fn pose_consensus(
             rotation_rad: CONSENSUS_ROTATION_SLACK_RAD,
         },
     ))
+}
+
+/// True when two readings of a frame (per observation, the candidate it is linked to) link
+/// some observation to different landmarks.
+pub(crate) fn links_conflict(a: &[Option<usize>], b: &[Option<usize>]) -> bool {
+    a.iter()
+        .zip(b)
+        .any(|(x, y)| x.is_some() && y.is_some() && x != y)
 }
 
 /// The pose refined on the observations' links (`None` when fewer than four, or the
