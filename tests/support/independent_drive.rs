@@ -549,8 +549,18 @@ pub fn replay_with(
                 .iter()
                 .filter(|l| l.n_obs >= 5 && l.max_parallax_rad >= 0.1)
                 .count();
+            let err = fix.estimate.as_ref().map_or(f64::NAN, |e| {
+                (e.world_from_rig.translation.vector - f.truth.translation.vector)
+                    .xy()
+                    .norm()
+            });
+            let sig = fix.estimate.as_ref().map_or(f64::NAN, |e| {
+                (e.covariance[(0, 0)] + e.covariance[(1, 1)])
+                    .max(0.0)
+                    .sqrt()
+            });
             println!(
-                "{k} s={:.0} sv={} {} [{}] surr={} mapped_near={} (n>=5&sig<=0.5: {good}, n>=5&par: {par}) det={}",
+                "{k} s={:.0} err={err:.2} sig={sig:.2} sv={} {} [{}] surr={} mapped_near={} (n>=5&sig<=0.5: {good}, n>=5&par: {par}) det={}",
                 f.s_m,
                 f.surveyed_in_range,
                 fix.status,

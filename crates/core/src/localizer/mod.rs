@@ -25,6 +25,9 @@
 //!    same point), at least [`MIN_TRACKED_CORRESPONDENCES`] of them; associations the
 //!    prediction did not decide (another landmark in an associated observation's gate, as
 //!    after a gap) need [`MIN_UNAMBIGUOUS_SURROGATE_FIX_ASSOCIATIONS`] distinct points.
+//!    A frame that sees three surveyed landmarks (and no more points) is a fix when the
+//!    prediction decided every association and confirms the pose (see
+//!    `confirmed_small_fix`).
 //!    When neither the prediction nor the pose most observations agree on tracks, the
 //!    prediction is tried turned about the vertical, up to
 //!    [`LocalizerOptions::max_turn_rate_change_rad_s`] × the time since the last fix each
@@ -983,6 +986,24 @@ impl Localizer {
         {
             return Ok((t, candidates, FixSource::Tracking));
         }
+        // Three surveyed landmarks the prediction decided and confirms (see
+        // `confirmed_small_fix`): a frame that sees only a few landmarks.
+        if let Some(t) = track::track(
+            &pose,
+            guess,
+            observations,
+            &candidates,
+            MIN_CONFIRMED_SURVEYED_POINTS,
+        ) && confirmed_small_fix(
+            &pose,
+            &guess,
+            &predicted_covariance,
+            &t,
+            &candidates,
+            observations,
+        ) {
+            return Ok((t, candidates, FixSource::Tracking));
+        }
         if let Some(t) = yaw_swept(
             self.options.max_turn_rate_change_rad_s,
             state,
@@ -1563,6 +1584,62 @@ fn is_seen_ahead(c: &Candidate, seen_ahead: &std::collections::HashSet<u64>) -> 
 fn consensus_redundant(t: &track::TrackResult, candidates: &[Candidate]) -> bool {
     let (surveyed, all) = track::distinct_associated_points(candidates, &t.assignment);
     redundant_on_its_own(surveyed, all)
+}
+
+/// Fewest distinct points, all surveyed landmarks, of a fix that rests on the prediction
+/// for its check ([`confirmed_small_fix`]).
+pub const MIN_CONFIRMED_SURVEYED_POINTS: usize = 3;
+/// Largest position σ (metres, `√tr` of the fix's position covariance with the error it
+/// shares with surrogates) of a fix checked by the prediction alone: a larger one is near a
+/// degenerate configuration (three landmarks and the rig near one circle), where the
+/// linearised covariance no longer describes the error.
+pub const MAX_CONFIRMED_FIX_SIGMA_M: f64 = 0.5;
+
+/// True when `t`, tracked from the prediction `predicted` on three distinct points (too
+/// few for [`redundant_enough`]), all of them surveyed landmarks, is still a fix because
+/// the prediction checks it: the prediction decided every association (no other landmark
+/// in an associated observation's gate, see [`track::chosen_among_several`]), the
+/// associations are unambiguous at the fix ([`associations_unambiguous`]), the pose agrees
+/// with the prediction in position and in tilt ([`consistent_with_prediction`],
+/// [`confirmed_by_prediction`]) and its position σ is at most [`MAX_CONFIRMED_FIX_SIGMA_M`].
+///
+/// Three bearings fit some pose exactly; the prediction adds 5 degrees of freedom
+/// (position and tilt; heading is left free, the motion model misses a turn's start and
+/// end). A wrong association needs a landmark within a gate that holds one landmark per
+/// observation, and a wrong prediction would have needed a wrong fix before. Surrogates are
+/// left out: on the reference drive's lamps (seed 4, frame 894) two surveyed lamps and two
+/// surrogates, decided and confirmed so, gave a fix 0.40 m off at σ 2 cm, and the drive
+/// lost 785 frames after it (docs/dev/journal.md, thirtieth session).
+fn confirmed_small_fix(
+    predicted: &Pose,
+    guess: &GuessUncertainty,
+    predicted_covariance: &Matrix3<f64>,
+    t: &track::TrackResult,
+    candidates: &[Candidate],
+    observations: &[ObsRay],
+) -> bool {
+    let (surveyed, all) = track::distinct_associated_points(candidates, &t.assignment);
+    let enough = surveyed == all && all >= MIN_CONFIRMED_SURVEYED_POINTS;
+    if !enough || t.mean_chi2 > MAX_MEAN_CHI2 {
+        return false;
+    }
+    let c = t.covariance.fixed_view::<3, 3>(0, 0) + common_mode(t, candidates, observations);
+    let sigma = c.trace().max(0.0).sqrt();
+    if sigma.is_nan() || sigma > MAX_CONFIRMED_FIX_SIGMA_M {
+        return false;
+    }
+    !track::chosen_among_several(predicted, guess, observations, candidates, &t.assignment)
+        && associations_unambiguous(t, candidates, observations)
+        && consistent_with_prediction(predicted, guess, t, candidates, observations)
+        && confirmed_by_prediction(
+            predicted,
+            guess,
+            predicted_covariance,
+            t,
+            candidates,
+            observations,
+        )
+        .is_ok()
 }
 
 /// Three surveyed landmarks or [`MIN_SURROGATE_FIX_ASSOCIATIONS`] distinct points: a fix
@@ -2349,6 +2426,90 @@ mod tests {
         // No sweep when it is turned off, nor without time for a turn.
         assert!(sweep(0.0, 0.2, &apart).is_none());
         assert!(sweep(DEFAULT_MAX_TURN_RATE_CHANGE_RAD_S, 0.0, &apart).is_none());
+    }
+
+    /// A frame that sees three surveyed landmarks: a fix when the one-frame prediction
+    /// decided the associations (each landmark's neighbour is 15° away) and agrees with the
+    /// pose; not when the gate is wide, the prediction is 1 m off in height, the fix's σ is
+    /// a metre (weak geometry), two points are associated, or a surrogate is among them
+    /// (three or four points).
+    #[test]
+    fn few_points_are_a_fix_only_when_the_prediction_decides_and_confirms_them() {
+        let l = landmarks();
+        let turn = Rotation3::from_axis_angle(&Vector3::z_axis(), 15f64.to_radians());
+        let mut candidates: Vec<Candidate> = (0..5).map(|k| surveyed(k, l[k])).collect();
+        candidates.extend((0..5).map(|k| surveyed(5 + k, turn * l[k])));
+        let cameras = [
+            Vector3::new(0.04, 0.0, 0.0),
+            Vector3::new(0.012, 0.038, 0.0),
+            Vector3::new(-0.032, 0.024, 0.0),
+            Vector3::new(-0.032, -0.024, 0.0),
+        ];
+        let observations: Vec<ObsRay> = (0..4).map(|k| seen(cameras[k], &l[k])).collect();
+        let predicted = Pose::identity();
+        let one_frame = Matrix3::from_diagonal_element(0.05 * 0.05);
+        let after_a_second = Matrix3::from_diagonal_element(2.1 * 2.1);
+        let confirmed = |pose: &Pose, guess, cov: &Matrix3<f64>, t, c: &[Candidate]| {
+            confirmed_small_fix(pose, guess, cov, t, c, &observations)
+        };
+        let three = fix(vec![Some(0), Some(1), Some(2), None]);
+        assert!(confirmed(
+            &predicted,
+            &ONE_FRAME,
+            &one_frame,
+            &three,
+            &candidates
+        ));
+        assert!(!confirmed(
+            &predicted,
+            &AFTER_ONE_SECOND,
+            &after_a_second,
+            &three,
+            &candidates
+        ));
+        let above = Pose::from_parts(Vector3::new(0.0, 0.0, 1.0).into(), Rotation3::identity());
+        assert!(!confirmed(
+            &above,
+            &ONE_FRAME,
+            &one_frame,
+            &three,
+            &candidates
+        ));
+        let mut weak = three.clone();
+        for k in 0..3 {
+            weak.covariance[(k, k)] = 0.6 * 0.6;
+        }
+        assert!(!confirmed(
+            &predicted,
+            &ONE_FRAME,
+            &one_frame,
+            &weak,
+            &candidates
+        ));
+        let two = fix(vec![Some(0), Some(1), None, None]);
+        assert!(!confirmed(
+            &predicted,
+            &ONE_FRAME,
+            &one_frame,
+            &two,
+            &candidates
+        ));
+        let mut mixed = candidates.clone();
+        mixed[2].source = CandidateSource::Surrogate(7);
+        assert!(!confirmed(
+            &predicted, &ONE_FRAME, &one_frame, &three, &mixed
+        ));
+        let four = fix(vec![Some(0), Some(1), Some(2), Some(3)]);
+        assert!(confirmed(
+            &predicted,
+            &ONE_FRAME,
+            &one_frame,
+            &four,
+            &candidates
+        ));
+        assert!(!confirmed(
+            &predicted, &ONE_FRAME, &one_frame, &four, &mixed
+        ));
     }
 
     /// Frame 69 of the day drive with the 60 px extent (issue #25, helper int25): after a
