@@ -995,9 +995,7 @@ impl Localizer {
             &candidates,
             MIN_CONFIRMED_SURVEYED_POINTS,
         ) && confirmed_small_fix(
-            &pose,
-            &guess,
-            &predicted_covariance,
+            (&pose, &guess, &predicted_covariance),
             &t,
             &candidates,
             observations,
@@ -1611,9 +1609,7 @@ pub const MAX_CONFIRMED_FIX_SIGMA_M: f64 = 0.5;
 /// surrogates, decided and confirmed so, gave a fix 0.40 m off at σ 2 cm, and the drive
 /// lost 785 frames after it (docs/dev/journal.md, thirtieth session).
 fn confirmed_small_fix(
-    predicted: &Pose,
-    guess: &GuessUncertainty,
-    predicted_covariance: &Matrix3<f64>,
+    (predicted, guess, predicted_covariance): (&Pose, &GuessUncertainty, &Matrix3<f64>),
     t: &track::TrackResult,
     candidates: &[Candidate],
     observations: &[ObsRay],
@@ -2088,6 +2084,24 @@ mod tests {
         ]
     }
 
+    /// The five landmarks as surveyed candidates, each with a neighbour 15° away around the
+    /// vertical (candidates 5–9), and an exact observation of each from its own camera.
+    fn neighboured_landmarks() -> (Vec<Candidate>, Vec<ObsRay>) {
+        let l = landmarks();
+        let turn = Rotation3::from_axis_angle(&Vector3::z_axis(), 15f64.to_radians());
+        let mut candidates: Vec<Candidate> = (0..5).map(|k| surveyed(k, l[k])).collect();
+        candidates.extend((0..5).map(|k| surveyed(5 + k, turn * l[k])));
+        let cameras = [
+            Vector3::new(0.04, 0.0, 0.0),
+            Vector3::new(0.012, 0.038, 0.0),
+            Vector3::new(-0.032, 0.024, 0.0),
+            Vector3::new(-0.032, -0.024, 0.0),
+            Vector3::new(0.0, 0.0, 0.04),
+        ];
+        let observations = (0..5).map(|k| seen(cameras[k], &l[k])).collect();
+        (candidates, observations)
+    }
+
     const ONE_FRAME: GuessUncertainty = GuessUncertainty {
         position_m: 0.05,
         rotation_rad: 2e-3,
@@ -2435,24 +2449,14 @@ mod tests {
     /// (three or four points).
     #[test]
     fn few_points_are_a_fix_only_when_the_prediction_decides_and_confirms_them() {
-        let l = landmarks();
-        let turn = Rotation3::from_axis_angle(&Vector3::z_axis(), 15f64.to_radians());
-        let mut candidates: Vec<Candidate> = (0..5).map(|k| surveyed(k, l[k])).collect();
-        candidates.extend((0..5).map(|k| surveyed(5 + k, turn * l[k])));
-        let cameras = [
-            Vector3::new(0.04, 0.0, 0.0),
-            Vector3::new(0.012, 0.038, 0.0),
-            Vector3::new(-0.032, 0.024, 0.0),
-            Vector3::new(-0.032, -0.024, 0.0),
-        ];
-        let observations: Vec<ObsRay> = (0..4).map(|k| seen(cameras[k], &l[k])).collect();
+        let (candidates, observations) = neighboured_landmarks();
         let predicted = Pose::identity();
         let one_frame = Matrix3::from_diagonal_element(0.05 * 0.05);
         let after_a_second = Matrix3::from_diagonal_element(2.1 * 2.1);
         let confirmed = |pose: &Pose, guess, cov: &Matrix3<f64>, t, c: &[Candidate]| {
-            confirmed_small_fix(pose, guess, cov, t, c, &observations)
+            confirmed_small_fix((pose, guess, cov), t, c, &observations)
         };
-        let three = fix(vec![Some(0), Some(1), Some(2), None]);
+        let three = fix(vec![Some(0), Some(1), Some(2), None, None]);
         assert!(confirmed(
             &predicted,
             &ONE_FRAME,
@@ -2486,7 +2490,7 @@ mod tests {
             &weak,
             &candidates
         ));
-        let two = fix(vec![Some(0), Some(1), None, None]);
+        let two = fix(vec![Some(0), Some(1), None, None, None]);
         assert!(!confirmed(
             &predicted,
             &ONE_FRAME,
@@ -2499,7 +2503,7 @@ mod tests {
         assert!(!confirmed(
             &predicted, &ONE_FRAME, &one_frame, &three, &mixed
         ));
-        let four = fix(vec![Some(0), Some(1), Some(2), Some(3)]);
+        let four = fix(vec![Some(0), Some(1), Some(2), Some(3), None]);
         assert!(confirmed(
             &predicted,
             &ONE_FRAME,
@@ -2519,19 +2523,7 @@ mod tests {
     /// one-frame prediction (nothing else in the gates), or five chosen ones, are fixes.
     #[test]
     fn four_associations_chosen_in_a_wide_gate_are_no_fix() {
-        let l = landmarks();
-        // Each landmark with a neighbour 15° away around the vertical.
-        let turn = Rotation3::from_axis_angle(&Vector3::z_axis(), 15f64.to_radians());
-        let mut candidates: Vec<Candidate> = (0..5).map(|k| surveyed(k, l[k])).collect();
-        candidates.extend((0..5).map(|k| surveyed(5 + k, turn * l[k])));
-        let cameras = [
-            Vector3::new(0.04, 0.0, 0.0),
-            Vector3::new(0.012, 0.038, 0.0),
-            Vector3::new(-0.032, 0.024, 0.0),
-            Vector3::new(-0.032, -0.024, 0.0),
-            Vector3::new(0.0, 0.0, 0.04),
-        ];
-        let observations: Vec<ObsRay> = (0..5).map(|k| seen(cameras[k], &l[k])).collect();
+        let (candidates, observations) = neighboured_landmarks();
         let predicted = Pose::identity();
         let four = fix(vec![Some(0), Some(1), Some(2), Some(3), None]);
         assert!(tracked_fix_acceptable(
