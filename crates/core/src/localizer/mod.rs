@@ -1585,7 +1585,7 @@ fn consensus_redundant(t: &track::TrackResult, candidates: &[Candidate]) -> bool
 }
 
 /// Fewest distinct points, all surveyed landmarks, of a fix that rests on the prediction
-/// for its check ([`confirmed_small_fix`]).
+/// for its check (`confirmed_small_fix`).
 pub const MIN_CONFIRMED_SURVEYED_POINTS: usize = 3;
 /// Largest position σ (metres, `√tr` of the fix's position covariance with the error it
 /// shares with surrogates) of a fix checked by the prediction alone: a larger one is near a
