@@ -1587,10 +1587,10 @@ fn consensus_redundant(t: &track::TrackResult, candidates: &[Candidate]) -> bool
 /// Fewest distinct points, all surveyed landmarks, of a fix that rests on the prediction
 /// for its check (`confirmed_small_fix`).
 pub const MIN_CONFIRMED_SURVEYED_POINTS: usize = 3;
-/// Largest position σ (metres, `√tr` of the fix's position covariance with the error it
-/// shares with surrogates) of a fix checked by the prediction alone: a larger one is near a
-/// degenerate configuration (three landmarks and the rig near one circle), where the
-/// linearised covariance no longer describes the error.
+/// Largest position σ (metres, `√tr` of the fix's position covariance) of a fix checked by
+/// the prediction alone: a larger one is near a degenerate configuration (three landmarks
+/// and the rig near one circle), where the linearised covariance no longer describes the
+/// error.
 pub const MAX_CONFIRMED_FIX_SIGMA_M: f64 = 0.5;
 
 /// True when `t`, tracked from the prediction `predicted` on three distinct points (too
@@ -1619,8 +1619,8 @@ fn confirmed_small_fix(
     if !enough || t.mean_chi2 > MAX_MEAN_CHI2 {
         return false;
     }
-    let c = t.covariance.fixed_view::<3, 3>(0, 0) + common_mode(t, candidates, observations);
-    let sigma = c.trace().max(0.0).sqrt();
+    let c = &t.covariance;
+    let sigma = (c[(0, 0)] + c[(1, 1)] + c[(2, 2)]).max(0.0).sqrt();
     if sigma.is_nan() || sigma > MAX_CONFIRMED_FIX_SIGMA_M {
         return false;
     }
