@@ -1,13 +1,14 @@
 //! An IMU's attitude prior (vertical and heading) in the localizer: frames without any
 //! position prior (no recent fix, no satellite GPS) are fixed on every frame through the
 //! heading-pruned whole-map search, where without the IMU they wait for the cold start
-//! (at most one every `cold_start_interval_s`).
+//! (at most one every `cold_start_interval_s`, or every second on a map no larger than the
+//! largest search around the last place known).
 
 use nalgebra::Vector3;
 use std::sync::Arc;
 use vgps_core::localizer::{
-    AttitudePrior, Frame, LAST_KNOWN_SEARCH_INTERVAL_S, Localizer, LocalizerError,
-    LocalizerOptions, LocalizerStatus,
+    AttitudePrior, DEFAULT_COLD_START_INTERVAL_S, Frame, LAST_KNOWN_SEARCH_INTERVAL_S, LandmarkMap,
+    Localizer, LocalizerError, LocalizerOptions, LocalizerStatus,
 };
 
 mod common;
@@ -23,10 +24,10 @@ fn small_drive() -> common::TestDrive {
 #[test]
 fn frames_with_an_imu_are_fixed_where_they_otherwise_wait_for_the_cold_start() {
     let common::TestDrive { drive, map, rig } = small_drive();
-    // Frames 2 s apart, beyond the motion model's reach (4 × 0.4 s), and no satellite GPS:
-    // without the IMU only the first and the one 10 s later (the cold-start interval) are
-    // searched.
-    let frames: Vec<_> = drive.frames.iter().step_by(10).take(6).collect();
+    // Frames 0.4 s apart, each without a prior (the localizer is reset) and no satellite
+    // GPS: without the IMU only the first and the first a second later (the cold-start
+    // interval on a map this small) are searched.
+    let frames: Vec<_> = drive.frames.iter().step_by(2).take(6).collect();
     assert_eq!(frames.len(), 6, "{} frames", drive.frames.len());
     let options = LocalizerOptions {
         max_tracking_gap_s: 0.4,
@@ -68,7 +69,7 @@ fn frames_with_an_imu_are_fixed_where_they_otherwise_wait_for_the_cold_start() {
     let without = run(false);
     let with = run(true);
     eprintln!("without IMU: {without:?}\nwith IMU: {with:?}");
-    // Without the IMU, the cold start is due on the first and the sixth frame only.
+    // Without the IMU, the cold start is due on the first and the fourth frame only.
     let waiting: Vec<usize> = (0..frames.len())
         .filter(|&k| without[k].0 == LocalizerStatus::NoPrior)
         .collect();
@@ -234,4 +235,53 @@ fn drift_rates_out_of_range_are_refused() {
             Some(LocalizerError::InvalidOption("seen_ahead_drift_per_m"))
         );
     }
+}
+
+/// Frames without any prior, 0.4 s apart: over the 100 m drive's map a cold start is due
+/// every second (it costs no more than a search around the last place known); over the
+/// same map stretched over more than 1.5 km² by one more landmark, every `cold_start_interval_s`.
+#[test]
+fn cold_starts_are_due_every_second_on_a_small_map_only() {
+    let common::TestDrive { drive, map, rig } = small_drive();
+    let mut landmarks = drive.surveyed_landmarks().unwrap();
+    let mut far = landmarks[0].clone();
+    far.id = "far".into();
+    far.lat_deg += 0.0135; // 1.5 km north
+    far.lon_deg += 0.02; // and at least 1.1 km east (below 60° of latitude)
+    landmarks.push(far);
+    let large =
+        Arc::new(LandmarkMap::from_landmarks(&landmarks, Some(drive.scenario.origin)).unwrap());
+    let frames: Vec<_> = drive.frames.iter().step_by(2).take(8).collect();
+    let searched = |map: &Arc<LandmarkMap>| {
+        let mut localizer = Localizer::new(
+            Arc::clone(&rig),
+            Arc::clone(map),
+            LocalizerOptions::default(),
+        )
+        .unwrap();
+        frames
+            .iter()
+            .filter_map(|f| {
+                let detections: Vec<_> = f.detections.iter().map(|d| d.detection.clone()).collect();
+                localizer.reset();
+                let fix =
+                    localizer.process(&Frame::from_detections(f.time_s, &detections, map, None));
+                (fix.status != LocalizerStatus::NoPrior).then_some(f.time_s)
+            })
+            .collect::<Vec<_>>()
+    };
+    let small = searched(&map);
+    let t0 = frames[0].time_s;
+    let span = frames[frames.len() - 1].time_s - t0;
+    assert!(span >= 2.0 * LAST_KNOWN_SEARCH_INTERVAL_S && span < DEFAULT_COLD_START_INTERVAL_S);
+    // The first frame, then the first frame at least a second after each search.
+    let mut expected = vec![t0];
+    for f in &frames {
+        if f.time_s - expected[expected.len() - 1] >= LAST_KNOWN_SEARCH_INTERVAL_S {
+            expected.push(f.time_s);
+        }
+    }
+    assert!(expected.len() >= 3, "{expected:?}");
+    assert_eq!(small, expected);
+    assert_eq!(searched(&large), vec![t0]);
 }

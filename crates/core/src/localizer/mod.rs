@@ -260,7 +260,10 @@ pub struct LocalizerOptions {
     pub angular_acceleration_rad_s2: f64,
     /// Try a cold start over the whole map when there is no prior.
     pub cold_start: bool,
-    /// Shortest interval between cold starts (seconds).
+    /// Shortest interval between cold starts (seconds). On a map whose horizontal extent is
+    /// at most π · [`MAX_LAST_KNOWN_RADIUS_M`]² (0.5 km²), at most
+    /// [`LAST_KNOWN_SEARCH_INTERVAL_S`]: a cold start there costs no more than a search
+    /// around the last place known.
     pub cold_start_interval_s: f64,
     /// Shortest interval between widened re-acquisitions that failed (seconds; see
     /// [`DEFAULT_WIDENED_ACQUISITION_INTERVAL_S`]).
@@ -1133,10 +1136,32 @@ impl Localizer {
     }
 
     /// True when a cold start may run at `time_s` (none yet, or the last one at least
-    /// `cold_start_interval_s` ago).
+    /// [`Self::cold_start_interval_s`] ago).
     fn cold_start_due(&self, time_s: f64) -> bool {
+        let interval = self.cold_start_interval_s();
         self.last_cold_start_s
-            .is_none_or(|t| (time_s - t).abs() >= self.options.cold_start_interval_s)
+            .is_none_or(|t| (time_s - t).abs() >= interval)
+    }
+
+    /// The shortest interval between cold starts (seconds): `cold_start_interval_s`, but at
+    /// most [`LAST_KNOWN_SEARCH_INTERVAL_S`] on a map whose horizontal extent is no larger
+    /// than the largest search around the last place known (π · [`MAX_LAST_KNOWN_RADIUS_M`]²).
+    /// A search costs in proportion to the area it covers: over such a map a cold start
+    /// costs no more than the last-place searches tried once a second, and waiting 10 s for
+    /// it after an outage lost frames on which the landmarks were plainly in view (the
+    /// independent sparse drive, 50 frames after its unsurveyed stretch).
+    fn cold_start_interval_s(&self) -> f64 {
+        let small_map = self.map.db().bounds().is_some_and(|(lo, hi)| {
+            (hi.x - lo.x) * (hi.y - lo.y)
+                <= std::f64::consts::PI * MAX_LAST_KNOWN_RADIUS_M * MAX_LAST_KNOWN_RADIUS_M
+        });
+        if small_map {
+            self.options
+                .cold_start_interval_s
+                .min(LAST_KNOWN_SEARCH_INTERVAL_S)
+        } else {
+            self.options.cold_start_interval_s
+        }
     }
 
     /// Where re-acquisition searches, in order of preference: around the motion model's
@@ -1202,9 +1227,7 @@ impl Localizer {
             // With a heading prior the search is pruned to the poses of that heading: it is
             // tried on every frame; a plain cold start at most every interval.
             let aided = attitude.is_some_and(|a| a.heading.is_some());
-            let due = self
-                .last_cold_start_s
-                .is_none_or(|t| (time_s - t).abs() >= self.options.cold_start_interval_s);
+            let due = self.cold_start_due(time_s);
             if !(due || aided) {
                 return Err((
                     LocalizerStatus::NoPrior,
