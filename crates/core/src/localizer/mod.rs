@@ -870,11 +870,10 @@ impl Localizer {
         let heading_pitch_roll = HeadingPitchRoll::from_enu_from_rig(&enu_from_rig);
         fix.gnss_difference_m = gnss_enu.map(|g| (g - position).xy().norm());
         self.update_state(frame.time_s, &t.world_from_rig, &t.covariance);
-        let c = &t.covariance;
         self.last_known = Some((
             frame.time_s,
             position,
-            3.0 * (c[(0, 0)] + c[(1, 1)] + c[(2, 2)]).max(0.0).sqrt(),
+            3.0 * position_sigma_m(&t.covariance),
         ));
         if self.options.surrogates {
             self.map_observations(
@@ -1079,7 +1078,7 @@ impl Localizer {
         let translation = state.pose.translation.vector + state.velocity * dt;
         let pose = Pose::from_parts(translation.into(), rotation);
         let c = &state.covariance;
-        let last_pos = (c[(0, 0)] + c[(1, 1)] + c[(2, 2)]).max(0.0).sqrt();
+        let last_pos = position_sigma_m(c);
         let last_rot = (c[(3, 3)] + c[(4, 4)] + c[(5, 5)]).max(0.0).sqrt();
         // The velocity comes from two fixes: its error is about √2·σ/dt per axis, and the
         // unmodelled acceleration adds a·dt²/2.
@@ -1342,10 +1341,7 @@ impl Localizer {
         let candidates = self.candidates(&position, 0.0);
         let c = &estimate.covariance;
         let guess = GuessUncertainty {
-            position_m: (c[(0, 0)] + c[(1, 1)] + c[(2, 2)])
-                .max(0.0)
-                .sqrt()
-                .max(MIN_PREDICTION_SIGMA_M),
+            position_m: position_sigma_m(c).max(MIN_PREDICTION_SIGMA_M),
             rotation_rad: (c[(3, 3)] + c[(4, 4)] + c[(5, 5)])
                 .max(0.0)
                 .sqrt()
@@ -1607,6 +1603,12 @@ fn consensus_redundant(t: &track::TrackResult, candidates: &[Candidate]) -> bool
     redundant_on_its_own(surveyed, all)
 }
 
+/// `√tr` of the position block of a pose covariance (metres; a negative or NaN trace gives 0,
+/// as `f64::max` does).
+fn position_sigma_m(c: &Matrix6<f64>) -> f64 {
+    (c[(0, 0)] + c[(1, 1)] + c[(2, 2)]).max(0.0).sqrt()
+}
+
 /// Fewest distinct points, all surveyed landmarks, of a fix that rests on the prediction
 /// for its check (`confirmed_small_fix`).
 pub const MIN_CONFIRMED_SURVEYED_POINTS: usize = 3;
@@ -1642,9 +1644,7 @@ fn confirmed_small_fix(
     if !enough || t.mean_chi2 > MAX_MEAN_CHI2 {
         return false;
     }
-    let c = &t.covariance;
-    let sigma = (c[(0, 0)] + c[(1, 1)] + c[(2, 2)]).max(0.0).sqrt();
-    if sigma.is_nan() || sigma > MAX_CONFIRMED_FIX_SIGMA_M {
+    if position_sigma_m(&t.covariance) > MAX_CONFIRMED_FIX_SIGMA_M {
         return false;
     }
     !track::chosen_among_several(predicted, guess, observations, candidates, &t.assignment)
